@@ -1,0 +1,137 @@
+#include "apps/lblight/cli_support.h"
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <sstream>
+
+#include "lblight/core/error.h"
+
+namespace lblight::cli {
+
+std::atomic<bool> g_interrupted{false};
+
+namespace {
+extern "C" void on_signal(int sig) {
+  g_interrupted.store(true);
+  std::signal(sig, SIG_DFL);  // a second signal ends the process at once
+}
+}  // namespace
+
+void install_signal_handlers() {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+}
+
+void setup_logging(int verbosity) {
+  auto logger = spdlog::stderr_color_mt("lblight");
+  logger->set_pattern("[%H:%M:%S] %^%l%$: %v");
+  spdlog::set_default_logger(logger);
+  spdlog::set_level(verbosity < 0   ? spdlog::level::warn
+                    : verbosity == 0 ? spdlog::level::info
+                    : verbosity == 1 ? spdlog::level::debug
+                                     : spdlog::level::trace);
+}
+
+std::string Table::str() const {
+  std::vector<std::size_t> width;
+  for (const auto& r : rows_)
+    for (std::size_t c = 0; c < r.size(); ++c) {
+      if (width.size() <= c) width.push_back(0);
+      width[c] = std::max(width[c], r[c].size());
+    }
+  auto numeric = [](const std::string& s) {
+    return !s.empty() && (std::isdigit(static_cast<unsigned char>(s[0])) || s[0] == '-' || s[0] == '(' || s == "n/a");
+  };
+  std::ostringstream out;
+  for (std::size_t i = 0; i < rows_.size(); ++i) {
+    const auto& r = rows_[i];
+    for (std::size_t c = 0; c < r.size(); ++c) {
+      const std::size_t pad = width[c] - r[c].size();
+      const bool right = i > 0 && numeric(r[c]);
+      if (right) out << std::string(pad, ' ') << r[c];
+      else out << r[c] << (c + 1 < r.size() ? std::string(pad, ' ') : "");
+      if (c + 1 < r.size()) out << "  ";
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+std::string format_seconds(double s) {
+  char buf[32];
+  if (s < 10) std::snprintf(buf, sizeof buf, "%.3f", s);
+  else std::snprintf(buf, sizeof buf, "%.1f", s);
+  return buf;
+}
+
+std::string format_error(double e) {
+  if (!std::isfinite(e)) return "n/a";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1e", e);
+  return buf;
+}
+
+std::string format_bytes(double b) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (b >= 1024 && u < 4) {
+    b /= 1024;
+    ++u;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, u == 0 ? "%.0f %s" : "%.2f %s", b, units[u]);
+  return buf;
+}
+
+std::string format_direction(const std::array<int, 3>& d) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "(%+d,%+d,%+d)", d[0], d[1], d[2]);
+  return buf;
+}
+
+void parse_iterations(const std::string& text, IterationMode& mode, int& steps) {
+  if (text == "auto") {
+    mode = IterationMode::Auto;
+    return;
+  }
+  if (text == "paper") {
+    mode = IterationMode::Paper;
+    return;
+  }
+  try {
+    std::size_t used = 0;
+    const long long n = std::stoll(text, &used);
+    if (used == text.size() && n >= 1 && n <= 100000000) {
+      mode = IterationMode::Fixed;
+      steps = static_cast<int>(n);
+      return;
+    }
+  } catch (const std::logic_error&) {
+  }
+  throw_invalid("--iterations '" + text + "': allowed: auto, paper, or a step count 1..100000000");
+}
+
+Precision parse_precision(const std::string& text) {
+  if (text == "float32") return Precision::Float32;
+  if (text == "float64") return Precision::Float64;
+  if (text == "float16") return Precision::Float16;
+  throw_invalid("--precision '" + text + "': allowed: float32, float64, float16");
+}
+
+std::string command_line(int argc, char** argv) {
+  std::string s;
+  for (int i = 0; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a.find_first_of(" \t\"'") != std::string::npos) a = "'" + a + "'";
+    s += (i ? " " : "") + a;
+  }
+  return s;
+}
+
+}  // namespace lblight::cli

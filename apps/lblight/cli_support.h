@@ -1,0 +1,41 @@
+// Small helpers shared by the subcommands: logging, interruption, tables, option parsing.
+#pragma once
+
+#include <atomic>
+#include <string>
+#include <vector>
+
+#include "lblight/backend/backend.h"
+#include "lblight/scene/scene.h"
+
+namespace lblight::cli {
+
+// Set by SIGINT/SIGTERM; long-running commands poll it and stop cleanly.
+extern std::atomic<bool> g_interrupted;
+void install_signal_handlers();
+
+void setup_logging(int verbosity);  // -1 quiet, 0 normal, 1 verbose, 2 trace
+
+// Plain-text table with right-aligned numeric columns.
+class Table {
+ public:
+  explicit Table(std::vector<std::string> header) : rows_{std::move(header)} {}
+  void add(std::vector<std::string> row) { rows_.push_back(std::move(row)); }
+  std::string str() const;
+
+ private:
+  std::vector<std::vector<std::string>> rows_;
+};
+
+std::string format_seconds(double s);
+std::string format_error(double e);      // "3.2e-05", or "n/a" when not estimable
+std::string format_bytes(double bytes);  // "1.23 GiB"
+std::string format_direction(const std::array<int, 3>& d);
+
+// "--iterations paper|auto|N"
+void parse_iterations(const std::string& text, IterationMode& mode, int& steps);
+Precision parse_precision(const std::string& text);
+
+std::string command_line(int argc, char** argv);
+
+}  // namespace lblight::cli

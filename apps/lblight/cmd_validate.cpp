@@ -1,0 +1,134 @@
+// lblight validate: load and check a scene without solving, and print what a bake would do.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <iostream>
+#include <sstream>
+
+#include "apps/lblight/cli_support.h"
+#include "apps/lblight/commands.h"
+#include "apps/lblight/solve_options.h"
+#include "lblight/core/error.h"
+#include "lblight/io/bake_output.h"
+#include "lblight/solve/calibrate.h"
+
+namespace lblight::cli {
+namespace {
+
+struct ValidateArgs {
+  SolveOptions solve;
+  bool json = false;
+  bool no_timing = false;
+};
+
+std::string channel_line(const Material& m) {
+  std::ostringstream s;
+  s.precision(4);
+  for (int c = 0; c < kChannels; ++c) {
+    const OpticalParams& p = m.channel[c];
+    s << (c ? " | " : "") << kChannelNames[c] << " sigma_a " << p.sigma_a << " sigma_s " << p.sigma_s << " g " << p.g;
+  }
+  return s.str();
+}
+
+int run_validate(const ValidateArgs& args) {
+  const Scene scene = load_scene(args.solve.scene);
+  const PlanOverrides ov = args.solve.overrides();
+  auto backend = args.solve.make_backend();
+  const BakePlan plan = make_plan(scene, ov);
+  const Precision precision = plan.precision;
+  if (!backend->supports(precision))
+    throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(precision),
+                  {scene.file.string(), "/solver/precision", {}});
+  const double ups = args.no_timing ? 0.0 : measure_updates_per_second(*backend, precision);
+
+  nlohmann::json out;
+  out["scene"] = {{"file", scene.file.string()}, {"name", scene.name}, {"hash", scene.hash}};
+  out["backend"] = {{"name", backend->name()}, {"description", backend->description()},
+                    {"precision", to_string(precision)}, {"updates_per_second", ups}};
+  out["models"] = nlohmann::json::array();
+  double total_seconds = 0;
+  std::ostringstream text;
+  text << "scene '" << scene.name << "' (" << scene.file.string() << "), " << scene.hash << "\n";
+  text << "backend: " << backend->description() << ", " << to_string(precision) << "\n";
+  for (const ModelPlan& mp : plan.models) {
+    const Dims& gd = mp.grid.dims;
+    const Dims& ld = mp.lattice.dims;
+    const std::size_t per_system = backend->bytes_per_system(ld, precision);
+    const std::size_t per_lattice = backend->bytes_per_lattice(ld);
+    const std::size_t batch = std::min<std::size_t>(mp.channels.size(), mp.systems());
+    const double memory = static_cast<double>(per_lattice + batch * per_system);
+    const double host_results = static_cast<double>(mp.solutions.size()) * 3.0 * ld.count() * sizeof(float);
+    const double updates = static_cast<double>(mp.systems()) * mp.estimated_steps * static_cast<double>(ld.interior_count());
+    const double seconds = ups > 0 ? updates / ups : 0.0;
+    total_seconds += seconds;
+
+    std::string sols;
+    for (const SolutionPlan& s : mp.solutions) sols += (sols.empty() ? "" : " ") + s.grid_name;
+    text << "model '" << mp.spec->name << "': " << mp.grid.description << "\n";
+    text << "  density grid " << gd.nx << "x" << gd.ny << "x" << gd.nz << ", voxel size " << mp.grid.voxel_size()[0]
+         << "; lattice " << ld.nx << "x" << ld.ny << "x" << ld.nz << " (margin " << mp.spec->margin << "), "
+         << mp.stats.occupied << " occupied nodes, " << mp.stats.wood << " wood\n";
+    text << "  material '" << mp.spec->material.name << "'" << (mp.spec->material.absorbs ? " (absorbs f0)" : "")
+         << ": " << channel_line(mp.spec->material) << "\n";
+    if (mp.lattice.material_count > 1)
+      text << "  wood '" << mp.spec->wood_material.name << "'" << (mp.spec->wood_material.absorbs ? " (absorbs f0)" : "")
+           << ": " << channel_line(mp.spec->wood_material) << "\n";
+    text << "  solutions (" << mp.solutions.size() << "): " << sols << "; " << mp.channels.size()
+         << " distinct channel(s) each\n";
+    text << "  steps: " << to_string(mp.steps.mode);
+    if (mp.steps.mode == IterationMode::Auto)
+      text << ", tolerance " << mp.steps.tolerance << ", check every " << mp.steps.check_interval << ", min "
+           << mp.steps.min_steps << ", max " << mp.steps.max_steps << "; estimated ~"
+           << static_cast<long long>(mp.estimated_steps) << " per solution";
+    else
+      text << ", " << mp.steps.fixed_steps << " per solution";
+    text << "\n  memory: " << format_bytes(memory) << " on the " << backend->name() << " backend (" << batch
+         << " system(s) of " << format_bytes(static_cast<double>(per_system)) << "), " << format_bytes(host_results)
+         << " of results on the host\n";
+    if (ups > 0)
+      text << "  estimated run time: " << format_seconds(seconds) << " s (" << mp.systems() << " systems x ~"
+           << static_cast<long long>(mp.estimated_steps) << " steps at " << format_seconds(ups / 1e6)
+           << " M updates/s)\n";
+
+    nlohmann::json m;
+    m["name"] = mp.spec->name;
+    m["source"] = mp.grid.description;
+    m["lattice"] = lattice_json(mp);
+    m["occupied_nodes"] = mp.stats.occupied;
+    m["wood_nodes"] = mp.stats.wood;
+    m["materials"] = {{"medium", material_json(mp.spec->material)}};
+    if (mp.lattice.material_count > 1) m["materials"]["wood"] = material_json(mp.spec->wood_material);
+    m["solutions"] = nlohmann::json::array();
+    for (const SolutionPlan& s : mp.solutions) m["solutions"].push_back(s.grid_name);
+    m["distinct_channels"] = mp.channels.size();
+    m["steps"] = {{"mode", to_string(mp.steps.mode)}, {"estimated_per_solution", mp.estimated_steps}};
+    m["memory_bytes"] = memory;
+    m["estimated_seconds"] = seconds;
+    out["models"].push_back(m);
+  }
+  out["warnings"] = plan.warnings;
+  out["estimated_seconds"] = total_seconds;
+  if (ups > 0) text << "total estimated run time: " << format_seconds(total_seconds) << " s\n";
+  for (const std::string& w : plan.warnings) text << "warning: " << w << "\n";
+  text << "scene is valid\n";
+  std::cout << (args.json ? out.dump(2) + "\n" : text.str());
+  return 0;
+}
+
+}  // namespace
+
+Command add_validate_command(CLI::App& app, const GlobalOptions&) {
+  auto args = std::make_shared<ValidateArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "validate",
+      "Check a scene without solving (loads and checks every density grid and material) and print the plan: "
+      "models, lattice sizes, solutions, memory needed and estimated run time. Exit code 2 names the first "
+      "problem.");
+  args->solve.add_to(*cmd);
+  cmd->add_flag("--json", args->json, "Print the plan as JSON");
+  cmd->add_flag("--no-timing", args->no_timing, "Skip the short throughput measurement behind the time estimate");
+  return {cmd, [args] { return run_validate(*args); }};
+}
+
+}  // namespace lblight::cli

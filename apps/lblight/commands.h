@@ -1,0 +1,28 @@
+// One subcommand per file: each registers its options and returns the function that runs it.
+#pragma once
+
+#include <functional>
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace lblight::cli {
+
+struct GlobalOptions {
+  int verbosity = 0;
+  std::string command_line;
+};
+
+struct Command {
+  CLI::App* app = nullptr;    // the subcommand, to see whether it was given
+  std::function<int()> run;  // runs it after parsing; returns the exit code
+};
+
+Command add_bake_command(CLI::App& app, const GlobalOptions& global);
+Command add_validate_command(CLI::App& app, const GlobalOptions& global);
+Command add_inspect_command(CLI::App& app, const GlobalOptions& global);
+Command add_bench_command(CLI::App& app, const GlobalOptions& global);
+
+}  // namespace lblight::cli

@@ -1,0 +1,69 @@
+// lblight: lattice-Boltzmann lighting precompute. main() wires subcommands and turns the
+// library's error categories into exit codes: 0 ok, 2 invalid input, 1 anything else.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <iostream>
+#include <vector>
+
+#include "apps/lblight/cli_support.h"
+#include "apps/lblight/commands.h"
+#include "lblight/core/error.h"
+#include "lblight/core/version.h"
+
+int main(int argc, char** argv) {
+  using namespace lblight;
+  cli::GlobalOptions global;
+  global.command_line = cli::command_line(argc, argv);
+
+  CLI::App app{"lblight " + std::string(kVersion) +
+               ": precomputes volumetric lighting for plants, forests and clouds with the lattice-Boltzmann "
+               "lighting model (D3Q19). Bakes the 19 base solutions a renderer relights for any sun direction."};
+  app.set_version_flag("--version", std::string("lblight ") + kVersion);
+  app.require_subcommand(1);
+  app.fallthrough();  // global flags (-v, -q) may follow the subcommand
+  int verbose = 0;
+  bool quiet = false;
+  app.add_flag("-v,--verbose", verbose, "More log output on stderr (repeat for trace)");
+  app.add_flag("-q,--quiet", quiet, "Only warnings and errors on stderr");
+  app.footer("Exit codes: 0 success, 2 invalid input, 1 other failure, 130 interrupted.\n"
+             "Run 'lblight <command> --help' for a command's options.");
+
+  const std::vector<cli::Command> commands = {
+      cli::add_bake_command(app, global),
+      cli::add_validate_command(app, global),
+      cli::add_inspect_command(app, global),
+      cli::add_bench_command(app, global),
+  };
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  }
+
+  global.verbosity = quiet ? -1 : verbose;
+  cli::setup_logging(global.verbosity);
+  cli::install_signal_handlers();
+  try {
+    for (const cli::Command& c : commands)
+      if (c.app->parsed()) return c.run();
+    return 1;
+  } catch (const Error& e) {
+    spdlog::error("{}", e.what());
+    return exit_code_for(e.category());
+  } catch (const std::bad_alloc&) {
+    spdlog::error("out of memory");
+    return 1;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+}

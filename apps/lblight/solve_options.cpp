@@ -1,0 +1,55 @@
+#include "apps/lblight/solve_options.h"
+
+#include <CLI/CLI.hpp>
+
+#include "apps/lblight/cli_support.h"
+#include "lblight/core/error.h"
+
+namespace lblight::cli {
+
+void SolveOptions::add_to(CLI::App& cmd) {
+  cmd.add_option("scene", scene, "Scene file (JSON, format v1: docs/scene-format.md)")->required();
+  cmd.add_option("--backend", backend,
+                 "Compute backend: auto (GPU when one is usable, else CPU), cpu (OpenMP), cuda")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
+      ->capture_default_str();
+  cmd.add_option("--threads", threads, "CPU threads (0 = OMP_NUM_THREADS or all cores)")
+      ->check(CLI::Range(0, 4096))
+      ->capture_default_str();
+  cmd.add_option("--device", device, "GPU ordinal for --backend cuda")->check(CLI::Range(0, 64))->capture_default_str();
+  cmd.add_option("--solutions", solutions,
+                 "Base solutions to bake: 'all' or indices/ranges such as 0,1,5-7 (default: the scene's)");
+  cmd.add_option("--iterations", iterations,
+                 "Steps per solution: 'auto' (until the error estimate is below --tolerance), 'paper' "
+                 "(2 x longest lattice edge, 000 sec. 3.1), or a fixed count (default: the scene's)");
+  cmd.add_option("--tolerance", tolerance,
+                 "Target relative error for --iterations auto (default: the scene's, else 1e-4)")
+      ->check(CLI::Range(1e-15, 0.5));
+  cmd.add_option("--precision", precision, "Lattice storage: float32, float64 (cpu) or float16 (cuda)")
+      ->check(CLI::IsMember({"float32", "float64", "float16"}));
+}
+
+PlanOverrides SolveOptions::overrides() const {
+  PlanOverrides ov;
+  if (!solutions.empty()) ov.solutions = parse_solution_list(solutions, {"--solutions", {}, {}});
+  if (!iterations.empty()) {
+    IterationMode mode = IterationMode::Auto;
+    int steps = 0;
+    parse_iterations(iterations, mode, steps);
+    ov.mode = mode;
+    ov.iterations = steps;
+  }
+  if (tolerance > 0) ov.tolerance = tolerance;
+  if (!precision.empty()) ov.precision = parse_precision(precision);
+  return ov;
+}
+
+std::unique_ptr<Backend> SolveOptions::make_backend() const {
+  BackendRequest req;
+  req.name = backend;
+  req.threads = threads;
+  req.device = device;
+  return lblight::make_backend(req);
+}
+
+}  // namespace lblight::cli

@@ -1,0 +1,31 @@
+// Options that bake and validate share: the scene, the backend and the solve overrides.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "lblight/backend/registry.h"
+#include "lblight/solve/plan.h"
+
+namespace CLI {
+class App;
+}
+
+namespace lblight::cli {
+
+struct SolveOptions {
+  std::string scene;
+  std::string backend = "auto";
+  int threads = 0;
+  int device = 0;
+  std::string solutions;   // empty = the scene's
+  std::string iterations;  // empty = the scene's
+  double tolerance = 0;    // 0 = the scene's
+  std::string precision;   // empty = the scene's
+
+  void add_to(CLI::App& cmd);
+  PlanOverrides overrides() const;
+  std::unique_ptr<Backend> make_backend() const;
+};
+
+}  // namespace lblight::cli

@@ -1,0 +1,112 @@
+// The coarse interface every compute backend implements (OpenMP, CUDA). One virtual call per
+// batch of steps, never per node. The orchestration in lblight/solve only talks to this.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lblight/lattice/lattice.h"
+#include "lblight/lattice/omega.h"
+
+namespace lblight {
+
+// Storage precision of the lattice state. Arithmetic is float32 for Float16 storage.
+enum class Precision { Float32, Float64, Float16 };
+const char* to_string(Precision p);
+
+inline constexpr int kMaxMaterials = 4;
+
+// What stays fixed while a lattice is solved: its shape, medium density and material per node.
+// The boundary layer (spec sec. 4) must have density 0.
+struct LatticeGeometry {
+  Dims dims;
+  std::vector<float> density;          // dims.count() values in [0, 1]
+  std::vector<std::uint8_t> material;  // dims.count() values < material_count
+  int material_count = 1;
+};
+
+// One colour channel: the collision matrix and the absorb flag of every material.
+struct ChannelMaterials {
+  std::array<OmegaMatrix, kMaxMaterials> omega{};
+  std::array<bool, kMaxMaterials> absorbs{};
+};
+
+// One linear system: a base solution (or a static bake) in one colour channel.
+struct SystemSpec {
+  int channel = 0;                    // index into the channels given to create()
+  std::array<double, 19> boundary{};  // fixed boundary values f_i, i = 0..18
+};
+
+// How the stored totals (sum_m f_m per node) changed since the previous measure(), over the
+// interior nodes. Sums and maxima only: a backend reduces on its device and returns these.
+struct Residual {
+  double diff_sq = 0.0;    // sum (total - previous total)^2
+  double total_sq = 0.0;   // sum total^2
+  double diff_max = 0.0;   // max |total - previous total|
+  double total_max = 0.0;  // max |total|
+  // Nodes whose material keeps f_0 (absorb false) hold a reservoir that refills at only rho per
+  // step: (Omega f)_0 = sigma_a sum_j f_j - f_0 is what it still lacks. Thin fringes (small rho)
+  // converge slowly this way, which no geometric extrapolation of the change sees.
+  double deficit_sq = 0.0;   // sum (Omega f)_0^2 over such nodes with rho > 0
+  double deficit_max = 0.0;  // max |(Omega f)_0| over them
+  bool finite = true;      // false once any total is NaN or Inf
+};
+
+struct SolverOptions {
+  Precision precision = Precision::Float32;
+  int max_systems = 0;  // systems per batch; 0 lets the backend choose from its memory
+};
+
+// A lattice resident on a backend, able to run a batch of systems side by side.
+class LatticeSolver {
+ public:
+  virtual ~LatticeSolver() = default;
+
+  virtual int capacity() const = 0;  // systems one batch may hold
+  // Starts a batch: interior state 0 (t = 0), boundary fixed to each system's values.
+  virtual void reset(const std::vector<SystemSpec>& batch) = 0;
+  virtual void step(int steps) = 0;
+  // Recomputes the totals of every system in the batch and how much they changed since the
+  // last measure (or since reset). out has one entry per system.
+  virtual void measure(std::vector<Residual>& out) = 0;
+  // Totals (dims.count() values) as of the last measure().
+  virtual void read_totals(int system, float* out) const = 0;
+
+  // Raw state access for tests and diagnostics: 19 * count values, direction-major.
+  // write_state keeps the boundary-fed entries at their boundary values.
+  virtual void read_state(int system, std::vector<double>& f) const = 0;
+  virtual void write_state(int system, const std::vector<double>& f) = 0;
+
+  virtual std::size_t bytes_in_use() const = 0;  // memory held on the backend's device
+};
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual std::string name() const = 0;         // "cpu" or "cuda"
+  virtual std::string description() const = 0;  // device and configuration, for logs and manifests
+  virtual bool supports(Precision p) const = 0;
+  // Memory one system needs, and what the device has free, for planning batches.
+  virtual std::size_t bytes_per_system(const Dims& dims, Precision p) const = 0;
+  virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;
+  virtual std::size_t available_bytes() const = 0;
+  virtual std::unique_ptr<LatticeSolver> create(const LatticeGeometry& geometry,
+                                                const std::vector<ChannelMaterials>& channels,
+                                                const SolverOptions& options) const = 0;
+  // Sustained copy bandwidth of the device's main memory in bytes/s, counting the bytes read
+  // plus the bytes written (the same accounting as lattice updates).
+  virtual double measure_copy_bandwidth(std::size_t bytes) const = 0;
+};
+
+// Bytes one lattice update of one system moves at minimum: 19 values in and out, plus the
+// density and material of the node.
+inline double bytes_per_update(Precision p) {
+  const double v = p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0);
+  return 2.0 * 19.0 * v + 4.0 + 1.0;
+}
+
+}  // namespace lblight

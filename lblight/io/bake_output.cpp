@@ -1,0 +1,159 @@
+#include "lblight/io/bake_output.h"
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+
+#include "lblight/core/version.h"
+#include "lblight/io/vdb_io.h"
+
+namespace lblight {
+
+namespace {
+nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+std::string utc_now() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+}  // namespace
+
+nlohmann::json material_json(const Material& m) {
+  nlohmann::json j;
+  j["name"] = m.name;
+  j["absorb"] = m.absorbs;
+  for (const char* key : {"sigma_a", "sigma_s", "g"}) j[key] = nlohmann::json::array();
+  for (int c = 0; c < kChannels; ++c) {
+    j["sigma_a"].push_back(m.channel[c].sigma_a);
+    j["sigma_s"].push_back(m.channel[c].sigma_s);
+    j["g"].push_back(m.channel[c].g);
+  }
+  return j;
+}
+
+std::array<double, 3> lattice_origin_world(const ModelPlan& mp) {
+  const auto& m = mp.grid.index_to_world;
+  std::array<double, 3> o{};
+  for (int r = 0; r < 3; ++r)
+    o[r] = m[r * 4 + 0] * mp.lattice_index_min[0] + m[r * 4 + 1] * mp.lattice_index_min[1] +
+           m[r * 4 + 2] * mp.lattice_index_min[2] + m[r * 4 + 3];
+  return o;
+}
+
+nlohmann::json lattice_json(const ModelPlan& mp) {
+  nlohmann::json j;
+  const Dims& d = mp.lattice.dims;
+  j["dims"] = {d.nx, d.ny, d.nz};
+  j["margin"] = mp.spec->margin;
+  j["index_min"] = mp.lattice_index_min;
+  const auto vs = mp.grid.voxel_size();
+  j["voxel_size"] = vs;
+  j["origin"] = lattice_origin_world(mp);
+  j["index_to_world"] = mp.grid.index_to_world;
+  return j;
+}
+
+BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info)
+    : plan_(plan), dir_(target), info_(std::move(info)) {}
+
+void BakeOutput::add(const ModelPlan&, SolutionResult& result) { pending_.push_back(std::move(result)); }
+
+void BakeOutput::set_peak_bytes(const ModelPlan&, std::size_t bytes) { peak_bytes_ = std::max(peak_bytes_, bytes); }
+
+void BakeOutput::finish_model(const ModelPlan& mp) {
+  const std::string file_name = mp.spec->name + ".vdb";
+  DenseFrame frame{mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world};
+  const nlohmann::json lattice_box = {{"lblight_lattice_min", mp.lattice_index_min},
+                                      {"lblight_lattice_dims", {frame.dims.nx, frame.dims.ny, frame.dims.nz}}};
+
+  std::vector<DenseGridOut> grids;
+  DenseGridOut density{"density", &mp.lattice.density, nullptr, true, lattice_box};
+  grids.push_back(density);
+  std::vector<float> brown;
+  if (mp.lattice.material_count > 1) {
+    brown.resize(mp.lattice.dims.count());
+    for (std::size_t i = 0; i < brown.size(); ++i)
+      brown[i] = mp.lattice.material[i] == kMaterialWood && mp.lattice.density[i] > 0.0f ? 1.0f : 0.0f;
+    grids.push_back({"brown", &brown, nullptr, false, lattice_box});
+  }
+
+  nlohmann::json model;
+  model["name"] = mp.spec->name;
+  model["file"] = file_name;
+  model["source"] = mp.grid.description;
+  model["lattice"] = lattice_json(mp);
+  model["materials"] = {{"medium", material_json(mp.spec->material)}};
+  if (mp.lattice.material_count > 1) model["materials"]["wood"] = material_json(mp.spec->wood_material);
+  model["occupied_nodes"] = mp.stats.occupied;
+  model["wood_nodes"] = mp.stats.wood;
+  model["distinct_channels"] = mp.channels.size();
+  model["steps"] = {{"mode", to_string(mp.steps.mode)},
+                    {"tolerance", mp.steps.tolerance},
+                    {"check_interval", mp.steps.check_interval},
+                    {"min_steps", mp.steps.min_steps},
+                    {"max_steps", mp.steps.max_steps}};
+  if (mp.steps.mode != IterationMode::Auto) model["steps"]["fixed_steps"] = mp.steps.fixed_steps;
+  model["peak_memory_bytes"] = peak_bytes_;
+  model["solutions"] = nlohmann::json::array();
+
+  for (const SolutionResult& r : pending_) {
+    DenseGridOut g;
+    g.name = r.plan.grid_name;
+    g.rgb = &r.totals;
+    g.metadata = lattice_box;
+    g.metadata["lblight_solution"] = r.plan.index;
+    g.metadata["lblight_direction"] = r.plan.direction;
+    g.metadata["lblight_iterations"] = r.iterations;
+    g.metadata["lblight_error_estimate"] = r.error_estimate;
+    g.metadata["lblight_converged"] = r.converged;
+    grids.push_back(g);
+
+    nlohmann::json s;
+    s["index"] = r.plan.index;
+    s["direction"] = r.plan.direction;
+    s["grid"] = r.plan.grid_name;
+    s["file"] = file_name;
+    s["iterations"] = r.iterations;
+    s["seconds"] = r.seconds;
+    s["error_estimate"] = finite_or_null(r.error_estimate);
+    s["error_estimate_max"] = finite_or_null(r.error_estimate_max);
+    s["converged"] = r.converged;
+    nlohmann::json hist = nlohmann::json::array();
+    for (const CheckPoint& c : r.history)
+      hist.push_back({c.step, c.seconds, finite_or_null(c.change_l2), finite_or_null(c.error_estimate),
+                      finite_or_null(c.error_estimate_max)});
+    s["residual_history"] = hist;
+    model["solutions"].push_back(s);
+  }
+  const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
+                                    {"lblight_model", mp.spec->name},
+                                    {"lblight_scene_hash", plan_.scene->hash}};
+  write_vdb(dir_.path(file_name), frame, grids, file_meta);
+  pending_.clear();
+  peak_bytes_ = 0;
+  models_.push_back(model);
+}
+
+nlohmann::json BakeOutput::commit(double total_seconds) {
+  nlohmann::json m;
+  m["lblight_version"] = kVersion;
+  m["manifest_format"] = kManifestFormat;
+  m["created"] = utc_now();
+  m["command"] = info_.command_line;
+  m["scene"] = {{"file", plan_.scene->file.string()}, {"name", plan_.scene->name}, {"hash", plan_.scene->hash}};
+  m["lighting"] = plan_.scene->lighting.mode == LightingMode::Base ? "base" : "static";
+  m["backend"] = {{"name", info_.backend_name},
+                  {"description", info_.backend_description},
+                  {"precision", to_string(info_.precision)}};
+  m["models"] = models_;
+  m["total_seconds"] = total_seconds;
+  write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");
+  dir_.commit();
+  return m;
+}
+
+}  // namespace lblight

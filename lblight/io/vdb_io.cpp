@@ -1,0 +1,285 @@
+#include "lblight/io/vdb_io.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
+
+#include <cmath>
+#include <mutex>
+
+#include "lblight/core/system_info.h"
+
+namespace lblight {
+namespace {
+
+void ensure_initialized() {
+  static std::once_flag once;
+  std::call_once(once, [] { openvdb::initialize(); });
+}
+
+// Our matrices act on column vectors (translation in the 4th column); OpenVDB's Mat4d acts on
+// row vectors (translation in the 4th row): one is the transpose of the other.
+openvdb::math::Transform::Ptr to_vdb_transform(const std::array<double, 16>& m) {
+  openvdb::math::Mat4d mat;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) mat(c, r) = m[static_cast<std::size_t>(r * 4 + c)];
+  return openvdb::math::Transform::createLinearTransform(mat);
+}
+
+std::array<double, 16> from_vdb_transform(const openvdb::math::Transform& t, const std::string& what,
+                                          const Location& where) {
+  if (!t.isLinear()) throw_invalid(what + " has a non-linear (frustum) transform; lblight needs a linear one", where);
+  const openvdb::math::Mat4d mat = t.baseMap()->getAffineMap()->getMat4();
+  std::array<double, 16> m{};
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m[static_cast<std::size_t>(r * 4 + c)] = mat(c, r);
+  return m;
+}
+
+openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where) {
+  ensure_initialized();
+  if (!std::filesystem::exists(path)) throw_invalid("VDB file " + path.string() + " does not exist", where);
+  openvdb::io::File file(path.string());
+  try {
+    file.open();
+  } catch (const openvdb::Exception& e) {
+    throw_invalid("cannot open " + path.string() + " as OpenVDB: " + e.what(), where);
+  }
+  if (!file.hasGrid(name)) {
+    std::string names;
+    for (auto it = file.beginName(); it != file.endName(); ++it) names += (names.empty() ? "" : ", ") + it.gridName();
+    file.close();
+    throw_invalid("VDB file " + path.string() + " has no grid named '" + name + "'; grids in it: " +
+                      (names.empty() ? "(none)" : names),
+                  where);
+  }
+  openvdb::GridBase::Ptr g = file.readGrid(name);
+  file.close();
+  return g;
+}
+
+void set_metadata(openvdb::MetaMap& meta, const nlohmann::json& j) {
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const auto& v = it.value();
+    const std::string& key = it.key();
+    if (v.is_boolean()) meta.insertMeta(key, openvdb::BoolMetadata(v.get<bool>()));
+    else if (v.is_number_integer()) meta.insertMeta(key, openvdb::Int64Metadata(v.get<long long>()));
+    else if (v.is_number()) {
+      const double d = v.get<double>();
+      // Infinity (an unknown error estimate) is written as -1 so every reader can parse it.
+      meta.insertMeta(key, openvdb::DoubleMetadata(std::isfinite(d) ? d : -1.0));
+    } else if (v.is_string()) meta.insertMeta(key, openvdb::StringMetadata(v.get<std::string>()));
+    else if (v.is_array() && v.size() == 3 && v[0].is_number_integer())
+      meta.insertMeta(key, openvdb::Vec3IMetadata(openvdb::Vec3i(v[0].get<int>(), v[1].get<int>(), v[2].get<int>())));
+    else meta.insertMeta(key, openvdb::StringMetadata(v.dump()));
+  }
+}
+
+nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
+  nlohmann::json j = nlohmann::json::object();
+  for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it) {
+    const auto& m = it->second;
+    const std::string type = m->typeName();
+    if (type == "bool") j[it->first] = static_cast<const openvdb::BoolMetadata&>(*m).value();
+    else if (type == "int32") j[it->first] = static_cast<const openvdb::Int32Metadata&>(*m).value();
+    else if (type == "int64") j[it->first] = static_cast<const openvdb::Int64Metadata&>(*m).value();
+    else if (type == "float") j[it->first] = static_cast<const openvdb::FloatMetadata&>(*m).value();
+    else if (type == "double") j[it->first] = static_cast<const openvdb::DoubleMetadata&>(*m).value();
+    else if (type == "string") j[it->first] = static_cast<const openvdb::StringMetadata&>(*m).value();
+    else if (type == "vec3i") {
+      const auto v = static_cast<const openvdb::Vec3IMetadata&>(*m).value();
+      j[it->first] = {v[0], v[1], v[2]};
+    } else j[it->first] = m->str();
+  }
+  return j;
+}
+
+openvdb::CoordBBox frame_bbox(const DenseFrame& f) {
+  const openvdb::Coord lo(f.index_min[0], f.index_min[1], f.index_min[2]);
+  return {lo, lo.offsetBy(f.dims.nx - 1, f.dims.ny - 1, f.dims.nz - 1)};
+}
+
+}  // namespace
+
+ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
+  auto base = open_grid(src.path, src.grid, where);
+  auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+  if (!grid)
+    throw_invalid("grid '" + src.grid + "' in " + src.path.string() + " is of type " + base->valueType() +
+                      "; allowed: a float grid",
+                  where);
+  if (grid->background() != 0.0f)
+    throw_invalid("grid '" + src.grid + "' in " + src.path.string() + " has background " +
+                      std::to_string(grid->background()) + "; allowed: background 0 (empty space)",
+                  where);
+  const openvdb::CoordBBox bbox = grid->evalActiveVoxelBoundingBox();
+  if (bbox.empty()) throw_invalid("grid '" + src.grid + "' in " + src.path.string() + " has no active voxels", where);
+  ModelGrid g;
+  const openvdb::Coord dim = bbox.dim();
+  g.dims = {dim.x(), dim.y(), dim.z()};
+  const double bytes = static_cast<double>(g.dims.count()) * 5.0;
+  const std::size_t avail = host_available_memory_bytes();
+  if (avail > 0 && bytes > 0.5 * static_cast<double>(avail))
+    throw Error(ErrorCategory::Unavailable,
+                "grid '" + src.grid + "' spans " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
+                    std::to_string(g.dims.nz) + " voxels, too large for this machine's memory",
+                where);
+  g.index_min = {bbox.min().x(), bbox.min().y(), bbox.min().z()};
+  g.index_to_world = from_vdb_transform(grid->transform(), "grid '" + src.grid + "'", where);
+  g.density.assign(g.dims.count(), 0.0f);
+  g.material.assign(g.dims.count(), kMaterialMedium);
+  openvdb::tools::Dense<float, openvdb::tools::LayoutZYX> dense(bbox, g.density.data());
+  openvdb::tools::copyToDense(*grid, dense);
+
+  if (!src.wood_grid.empty()) {
+    auto wbase = open_grid(src.path, src.wood_grid, where);
+    if (wbase->transform() != grid->transform())
+      throw_invalid("wood grid '" + src.wood_grid + "' does not share the transform of density grid '" + src.grid + "'",
+                    where);
+    std::vector<float> wood(g.dims.count(), 0.0f);
+    openvdb::tools::Dense<float, openvdb::tools::LayoutZYX> wdense(bbox, wood.data());
+    if (auto wf = openvdb::gridPtrCast<openvdb::FloatGrid>(wbase)) openvdb::tools::copyToDense(*wf, wdense);
+    else if (auto wi = openvdb::gridPtrCast<openvdb::Int32Grid>(wbase)) {
+      std::vector<int> tmp(g.dims.count(), 0);
+      openvdb::tools::Dense<int, openvdb::tools::LayoutZYX> idense(bbox, tmp.data());
+      openvdb::tools::copyToDense(*wi, idense);
+      for (std::size_t i = 0; i < tmp.size(); ++i) wood[i] = static_cast<float>(tmp[i]);
+    } else if (auto wb = openvdb::gridPtrCast<openvdb::BoolGrid>(wbase)) {
+      for (auto it = wb->cbeginValueOn(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        if (bbox.isInside(c) && *it)
+          wood[g.dims.index(c.x() - bbox.min().x(), c.y() - bbox.min().y(), c.z() - bbox.min().z())] = 1.0f;
+      }
+    } else {
+      throw_invalid("wood grid '" + src.wood_grid + "' is of type " + wbase->valueType() +
+                        "; allowed: float, int32 or bool",
+                    where);
+    }
+    for (std::size_t i = 0; i < wood.size(); ++i)
+      if (wood[i] > 0.5f) g.material[i] = kMaterialWood;
+  }
+  g.description = "grid '" + src.grid + "' of " + src.path.string();
+  return g;
+}
+
+void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,
+               const nlohmann::json& file_metadata) {
+  ensure_initialized();
+  const auto transform = to_vdb_transform(frame.index_to_world);
+  const openvdb::CoordBBox bbox = frame_bbox(frame);
+  openvdb::GridPtrVec out;
+  for (const DenseGridOut& spec : grids) {
+    openvdb::GridBase::Ptr g;
+    if (spec.scalar) {
+      auto fg = openvdb::FloatGrid::create(0.0f);
+      openvdb::tools::Dense<const float, openvdb::tools::LayoutZYX> dense(bbox, spec.scalar->data());
+      openvdb::tools::copyFromDense(dense, *fg, 0.0f);
+      if (spec.fog_volume) fg->setGridClass(openvdb::GRID_FOG_VOLUME);
+      g = fg;
+    } else {
+      auto vg = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+      std::vector<openvdb::Vec3s> interleaved(frame.dims.count());
+      for (std::size_t i = 0; i < interleaved.size(); ++i)
+        interleaved[i] = openvdb::Vec3s((*spec.rgb)[0][i], (*spec.rgb)[1][i], (*spec.rgb)[2][i]);
+      openvdb::tools::Dense<const openvdb::Vec3s, openvdb::tools::LayoutZYX> dense(bbox, interleaved.data());
+      openvdb::tools::copyFromDense(dense, *vg, openvdb::Vec3s(0.0f));
+      vg->setVectorType(openvdb::VEC_INVARIANT);
+      g = vg;
+    }
+    g->setName(spec.name);
+    g->setTransform(transform->copy());
+    set_metadata(*g, spec.metadata);
+    out.push_back(g);
+  }
+  openvdb::MetaMap meta;
+  set_metadata(meta, file_metadata);
+  try {
+    openvdb::io::File f(file.string());
+    f.write(out, meta);
+    f.close();
+  } catch (const openvdb::Exception& e) {
+    throw_io(std::string("cannot write VDB file: ") + e.what(), {file.string(), {}, {}});
+  }
+}
+
+DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& name) {
+  const Location where{file.string(), {}, {}};
+  auto base = open_grid(file, name, where);
+  DenseGridIn out;
+  out.name = name;
+  out.type = base->valueType();
+  out.metadata = metadata_to_json(*base);
+  // lblight outputs record their lattice box; other files are read over their active voxels.
+  openvdb::CoordBBox bbox;
+  if (out.metadata.contains("lblight_lattice_min") && out.metadata.contains("lblight_lattice_dims")) {
+    const auto& lo = out.metadata["lblight_lattice_min"];
+    const auto& d = out.metadata["lblight_lattice_dims"];
+    bbox = openvdb::CoordBBox(openvdb::Coord(lo[0].get<int>(), lo[1].get<int>(), lo[2].get<int>()),
+                              openvdb::Coord(lo[0].get<int>() + d[0].get<int>() - 1, lo[1].get<int>() + d[1].get<int>() - 1,
+                                             lo[2].get<int>() + d[2].get<int>() - 1));
+  } else {
+    bbox = base->evalActiveVoxelBoundingBox();
+  }
+  if (bbox.empty()) bbox = openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(0));
+  out.frame.dims = {bbox.dim().x(), bbox.dim().y(), bbox.dim().z()};
+  out.frame.index_min = {bbox.min().x(), bbox.min().y(), bbox.min().z()};
+  out.frame.index_to_world = from_vdb_transform(base->transform(), "grid '" + name + "'", where);
+  const std::size_t n = out.frame.dims.count();
+  if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(base)) {
+    out.values[0].assign(n, 0.0f);
+    openvdb::tools::Dense<float, openvdb::tools::LayoutZYX> dense(bbox, out.values[0].data());
+    openvdb::tools::copyToDense(*fg, dense);
+  } else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base)) {
+    std::vector<openvdb::Vec3s> tmp(n);
+    openvdb::tools::Dense<openvdb::Vec3s, openvdb::tools::LayoutZYX> dense(bbox, tmp.data());
+    openvdb::tools::copyToDense(*vg, dense);
+    for (int c = 0; c < 3; ++c) {
+      out.values[c].resize(n);
+      for (std::size_t i = 0; i < n; ++i) out.values[c][i] = tmp[i][c];
+    }
+  } else {
+    throw_invalid("grid '" + name + "' is of type " + out.type + "; allowed: float or vec3s", where);
+  }
+  return out;
+}
+
+nlohmann::json inspect_vdb(const std::filesystem::path& file) {
+  ensure_initialized();
+  const Location where{file.string(), {}, {}};
+  openvdb::io::File f(file.string());
+  try {
+    f.open(false);
+  } catch (const openvdb::Exception& e) {
+    throw_invalid(std::string("cannot open as OpenVDB: ") + e.what(), where);
+  }
+  nlohmann::json j;
+  j["file"] = file.string();
+  j["file_metadata"] = metadata_to_json(*f.getMetadata());
+  j["grids"] = nlohmann::json::array();
+  auto grids = f.readAllGridMetadata();
+  for (const auto& g : *grids) {
+    nlohmann::json e;
+    e["name"] = g->getName();
+    e["type"] = g->valueType();
+    e["class"] = openvdb::GridBase::gridClassToString(g->getGridClass());
+    const auto meta = metadata_to_json(*g);
+    if (meta.contains("file_bbox_min") && meta.contains("file_bbox_max")) {
+      e["bbox_min"] = meta["file_bbox_min"];
+      e["bbox_max"] = meta["file_bbox_max"];
+    }
+    if (meta.contains("file_voxel_count")) e["active_voxels"] = meta["file_voxel_count"];
+    const openvdb::Vec3d vs = g->voxelSize();
+    e["voxel_size"] = {vs[0], vs[1], vs[2]};
+    const openvdb::Vec3d origin = g->transform().indexToWorld(openvdb::Vec3d(0, 0, 0));
+    e["index_origin_world"] = {origin[0], origin[1], origin[2]};
+    nlohmann::json user = nlohmann::json::object();
+    for (auto it = meta.begin(); it != meta.end(); ++it)
+      if (it.key().rfind("file_", 0) != 0 && it.key() != "class" && it.key() != "name" && it.key() != "vector_type")
+        user[it.key()] = it.value();
+    e["metadata"] = user;
+    j["grids"].push_back(e);
+  }
+  f.close();
+  return j;
+}
+
+}  // namespace lblight

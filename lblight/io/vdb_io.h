@@ -1,0 +1,54 @@
+// Everything that touches OpenVDB lives behind this header (one translation unit compiles
+// openvdb.h, which is slow to build and does not compile under nvcc).
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lblight/core/error.h"
+#include "lblight/scene/model_grid.h"
+#include "lblight/scene/scene.h"
+
+namespace lblight {
+
+// Reads a float density grid (and optional wood grid) into a dense ModelGrid over the
+// density grid's active bounding box. Throws Error(InvalidInput) naming file and grid.
+ModelGrid read_vdb_density(const VdbSource& source, const Location& where);
+
+// One grid to write: a float grid (scalar) or a Vec3f grid (rgb), over a dense lattice.
+struct DenseGridOut {
+  std::string name;
+  const std::vector<float>* scalar = nullptr;
+  const std::array<std::vector<float>, 3>* rgb = nullptr;
+  bool fog_volume = false;                      // GRID_FOG_VOLUME class (density)
+  nlohmann::json metadata = nlohmann::json::object();  // int, float, bool, string, [3 ints] values
+};
+
+struct DenseFrame {
+  Dims dims;                                    // lattice dims
+  std::array<int, 3> index_min{};               // index coordinate of node (0, 0, 0)
+  std::array<double, 16> index_to_world{};      // row-major, acts on (i, j, k, 1)
+};
+
+// Writes the grids to `file` (which should be a staging path; see output_dir.h).
+void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,
+               const nlohmann::json& file_metadata);
+
+// A grid read back densely over a frame (tests, compression): float grids fill channel 0.
+struct DenseGridIn {
+  std::string name, type;
+  DenseFrame frame;
+  std::array<std::vector<float>, 3> values;  // 1 or 3 channels used
+  nlohmann::json metadata;
+};
+DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& grid);
+
+// Grid names, types, classes, bounding boxes, transforms and metadata, without voxel data.
+nlohmann::json inspect_vdb(const std::filesystem::path& file);
+
+}  // namespace lblight

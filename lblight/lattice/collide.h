@@ -1,0 +1,108 @@
+// The per-node physics of one LB step (spec sec. 3), written once for every backend:
+//   post_m = f~_m + rho * sum_n Omega_mn f~_n
+// with Omega applied in its reduced form (collision_op.h). Backends supply only the loop
+// around it (OpenMP rows, GPU threads).
+#pragma once
+
+#include "lblight/core/hostdev.h"
+#include "lblight/lattice/collision_op.h"
+#include "lblight/lattice/d3q19.h"
+
+#if defined(__CUDACC__) || defined(__HIPCC__)
+#define LBL_UNROLL _Pragma("unroll")
+#elif defined(__clang__)
+#define LBL_UNROLL _Pragma("unroll")
+#elif defined(__GNUC__)
+#define LBL_UNROLL _Pragma("GCC unroll 19")
+#else
+#define LBL_UNROLL
+#endif
+
+namespace lblight {
+
+// Sums of the rows of one antipodal pair: E (even part plus re-emitted f_0) and O (odd part).
+template <typename Real, typename OpReal>
+LBL_HOSTDEV LBL_FORCEINLINE void pair_rows(const CollisionOp<OpReal>& op, int m, Real f0, const Real (&e)[kPairs],
+                                           const Real (&o)[kPairs], Real& E, Real& O) {
+  E = static_cast<Real>(op.col0[m]) * f0;
+  O = Real(0);
+  LBL_UNROLL
+  for (int k = 0; k < kPairs; ++k) {
+    E += static_cast<Real>(op.even[m * kPairs + k]) * e[k];
+    O += static_cast<Real>(op.odd[m * kPairs + k]) * o[k];
+  }
+}
+
+template <typename Real>
+LBL_HOSTDEV LBL_FORCEINLINE void split_pairs(const Real (&f)[d3q19::kQ], Real (&e)[kPairs], Real (&o)[kPairs]) {
+  LBL_UNROLL
+  for (int k = 0; k < kPairs; ++k) {
+    e[k] = f[2 * k + 1] + f[2 * k + 2];
+    o[k] = f[2 * k + 1] - f[2 * k + 2];
+  }
+}
+
+// (Omega f)_0 = sigma_a sum_j f_j - f_0: what a node that keeps f_0 still lacks of its
+// reservoir's local equilibrium (see Residual::deficit_sq).
+template <typename Real, typename OpReal>
+LBL_HOSTDEV LBL_FORCEINLINE Real f0_deficit(const CollisionOp<OpReal>& op, const Real (&f)[d3q19::kQ]) {
+  Real s = static_cast<Real>(op.diag0) * f[0];
+  LBL_UNROLL
+  for (int k = 0; k < kPairs; ++k) s += static_cast<Real>(op.row0[k]) * (f[2 * k + 1] + f[2 * k + 2]);
+  return s;
+}
+
+// The whole per-node update for a node of one material; post_m goes to store(m, value) as soon
+// as it is known. f0_keep is 0 for materials that absorb ("green" nodes dump what they absorbed
+// last step, 001 Listing 5.1) and 1 otherwise: a factor rather than a branch keeps CPU loops SIMD.
+template <typename Real, typename OpReal, typename Store>
+LBL_HOSTDEV LBL_FORCEINLINE void collide_node(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
+                                              Real (&f)[d3q19::kQ], Store&& store) {
+  f[0] *= f0_keep;
+  Real e[kPairs], o[kPairs];
+  split_pairs(f, e, o);
+  Real s0 = static_cast<Real>(op.diag0) * f[0];
+  LBL_UNROLL
+  for (int k = 0; k < kPairs; ++k) s0 += static_cast<Real>(op.row0[k]) * e[k];
+  store(0, f[0] + rho * s0);
+  LBL_UNROLL
+  for (int m = 0; m < kPairs; ++m) {
+    Real E, O;
+    pair_rows(op, m, f[0], e, o, E, O);
+    store(2 * m + 1, f[2 * m + 1] + rho * (E + O));
+    store(2 * m + 2, f[2 * m + 2] + rho * (E - O));
+  }
+}
+
+// The same for a node among several materials: material k contributes with density rho[k]
+// (zero for every material but the node's own), so a row of mixed nodes shares one SIMD loop.
+template <int kMaterials, typename Real, typename OpReal, typename Store>
+LBL_HOSTDEV LBL_FORCEINLINE void collide_node_multi(const CollisionOp<OpReal>* const (&ops)[kMaterials],
+                                                    const Real (&rho)[kMaterials], Real f0_keep,
+                                                    Real (&f)[d3q19::kQ], Store&& store) {
+  f[0] *= f0_keep;
+  Real e[kPairs], o[kPairs];
+  split_pairs(f, e, o);
+  Real acc0 = f[0];
+  for (int k = 0; k < kMaterials; ++k) {
+    Real s0 = static_cast<Real>(ops[k]->diag0) * f[0];
+    LBL_UNROLL
+    for (int j = 0; j < kPairs; ++j) s0 += static_cast<Real>(ops[k]->row0[j]) * e[j];
+    acc0 += rho[k] * s0;
+  }
+  store(0, acc0);
+  LBL_UNROLL
+  for (int m = 0; m < kPairs; ++m) {
+    Real a = f[2 * m + 1], b = f[2 * m + 2];
+    for (int k = 0; k < kMaterials; ++k) {
+      Real E, O;
+      pair_rows(*ops[k], m, f[0], e, o, E, O);
+      a += rho[k] * (E + O);
+      b += rho[k] * (E - O);
+    }
+    store(2 * m + 1, a);
+    store(2 * m + 2, b);
+  }
+}
+
+}  // namespace lblight

@@ -1,0 +1,40 @@
+// The collision matrix Omega of 000 eqs. (5)-(9), built in double precision on the host.
+#pragma once
+
+#include <array>
+
+#include "lblight/lattice/d3q19.h"
+
+namespace lblight {
+
+// Optical parameters of one material in one colour channel.
+struct OpticalParams {
+  double sigma_a = 0.0;  // absorption, >= 0
+  double sigma_s = 0.0;  // scattering, >= 0
+  double g = 0.0;        // Henyey-Greenstein asymmetry, in [-1, 1]
+  double sigma_t() const { return sigma_a + sigma_s; }
+};
+
+// Row-major 19x19: entry (m, n) = omega[m * 19 + n] scatters from direction n into direction m.
+using OmegaMatrix = std::array<double, d3q19::kQ * d3q19::kQ>;
+using OmegaMatrixF = std::array<float, d3q19::kQ * d3q19::kQ>;
+
+// Discrete Henyey-Greenstein value p_ij(g) of eq. (9) for moving directions i, j >= 1.
+// |g| = 1 is the limit: 1 where n_i . n_j = sign(g), else 0 (never evaluated as 0/0).
+double hg_phase(double g, int i, int j);
+
+// Normalised phase pn_ij(g) of eq. (8); for every j, sum_i w_i pn_ij = 1.
+double normalized_phase(double g, int i, int j);
+
+OmegaMatrix build_omega(const OpticalParams& params);
+OmegaMatrixF to_float(const OmegaMatrix& omega);
+
+// LB diffusion coefficient of 000 eq. (4) with lambda = tau = 1 for a node of density rho:
+// ((2 / (rho sigma_t)) - 1) / (4 (1 + rho sigma_a)). Infinite for rho sigma_t = 0.
+double diffusion_coefficient(const OpticalParams& params, double rho = 1.0);
+
+// Smallest diagonal entry 1 + rho * Omega_mm over m; negative values mean transients can go
+// negative (spec sec. 6 asks for a warning, not a rejection).
+double min_diagonal_gain(const OmegaMatrix& omega, double rho);
+
+}  // namespace lblight

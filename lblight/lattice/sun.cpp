@@ -1,0 +1,103 @@
+#include "lblight/lattice/sun.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "lblight/lattice/d3q19.h"
+
+namespace lblight {
+
+using namespace d3q19;
+
+namespace {
+Vec3d unit_dir(int m) {
+  const double len = std::sqrt(static_cast<double>(length_sq(m)));
+  return {cx(m) / len, cy(m) / len, cz(m) / len};
+}
+Vec3d sub(Vec3d a, Vec3d b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3d cross(Vec3d a, Vec3d b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+double dot(Vec3d a, Vec3d b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+// Convex hull of the 18 unit directions by brute force: a triple is a face when every other
+// point lies strictly inside its plane. No four of these points are coplanar on the hull, so the
+// result is exactly the 32 triangles (8 at the cube corners, 4 around each axial vertex).
+std::vector<std::array<int, 3>> compute_faces() {
+  std::vector<std::array<int, 3>> faces;
+  for (int a = 1; a < kQ; ++a)
+    for (int b = a + 1; b < kQ; ++b)
+      for (int c = b + 1; c < kQ; ++c) {
+        const Vec3d pa = unit_dir(a), pb = unit_dir(b), pc = unit_dir(c);
+        Vec3d n = cross(sub(pb, pa), sub(pc, pa));
+        if (dot(n, n) < 1e-12) continue;
+        if (dot(n, pa) < 0) n = {-n.x, -n.y, -n.z};
+        const double d = dot(n, pa);
+        bool hull = d > 1e-12;
+        for (int o = 1; o < kQ && hull; ++o) {
+          if (o == a || o == b || o == c) continue;
+          if (dot(n, unit_dir(o)) >= d - 1e-12) hull = false;
+        }
+        if (!hull) continue;
+        // orient counter-clockwise seen from outside
+        if (dot(cross(sub(pb, pa), sub(pc, pa)), pa) < 0) faces.push_back({a, c, b});
+        else faces.push_back({a, b, c});
+      }
+  if (faces.size() != 32) throw std::logic_error("lattice polyhedron does not have 32 faces");
+  return faces;
+}
+}  // namespace
+
+const std::vector<std::array<int, 3>>& polyhedron_faces() {
+  static const std::vector<std::array<int, 3>> faces = compute_faces();
+  return faces;
+}
+
+SunWeights decompose_direction(const Vec3d& d) {
+  if (!(std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z)) || dot(d, d) == 0.0)
+    throw std::invalid_argument("sun direction must be a finite, non-zero vector");
+  // Solve d = alpha n_a + beta n_b + gamma n_c; the face whose coefficients are all >= 0 is the
+  // one the ray hits, and the normalised coefficients are the barycentric weights of the hit.
+  SunWeights best;
+  double best_min = -1e300;
+  for (const auto& f : polyhedron_faces()) {
+    const Vec3d a = unit_dir(f[0]), b = unit_dir(f[1]), c = unit_dir(f[2]);
+    const double det = dot(a, cross(b, c));
+    const double alpha = dot(d, cross(b, c)) / det;
+    const double beta = dot(a, cross(d, c)) / det;
+    const double gamma = dot(a, cross(b, d)) / det;
+    const double lo = std::min(alpha, std::min(beta, gamma));
+    // Keep the face with the largest smallest coefficient: exact ties on shared edges pick one
+    // face deterministically, and rounding can never leave us without a face.
+    if (lo > best_min + 1e-15) {
+      best_min = lo;
+      const double sum = alpha + beta + gamma;
+      best.direction = f;
+      best.weight = {std::max(0.0, alpha / sum), std::max(0.0, beta / sum), std::max(0.0, gamma / sum)};
+    }
+  }
+  const double s = best.weight[0] + best.weight[1] + best.weight[2];
+  for (double& w : best.weight) w /= s;
+  return best;
+}
+
+Vec3d toward_sun_from_angles(double elevation_deg, double azimuth_deg) {
+  const double pi = 3.14159265358979323846;
+  const double el = elevation_deg * pi / 180.0, az = azimuth_deg * pi / 180.0;
+  return {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+}
+
+std::array<double, 19> static_boundary(const SunWeights& sun, double intensity, double ambient) {
+  std::array<double, 19> f{};
+  f.fill(ambient);
+  for (int k = 0; k < 3; ++k) f[sun.direction[k]] += intensity * sun.weight[k];
+  return f;
+}
+
+std::array<double, 19> base_boundary(int solution) {
+  std::array<double, 19> f{};
+  if (solution == 0) f.fill(1.0);
+  else f[solution] = 1.0;
+  return f;
+}
+
+}  // namespace lblight

@@ -1,0 +1,87 @@
+#include "lblight/scene/json_reader.h"
+
+#include <cmath>
+
+namespace lblight {
+
+std::string JsonReader::describe(const nlohmann::json& v) {
+  std::string s = v.dump();
+  if (s.size() > 60) s = s.substr(0, 57) + "...";
+  return s;
+}
+
+void JsonReader::fail(const std::string& message, const std::string& key) const {
+  throw_invalid(message, location(key));
+}
+
+void JsonReader::expect_object() const {
+  if (!j_->is_object()) fail("expected a JSON object, found " + describe(*j_));
+}
+
+JsonReader JsonReader::child(const std::string& key) const {
+  expect_object();
+  if (!j_->contains(key)) fail("required field '" + key + "' is missing", key);
+  return JsonReader(j_->at(key), path_of(key), file_);
+}
+
+JsonReader JsonReader::element(std::size_t index) const {
+  return JsonReader(j_->at(index), path_ + "/" + std::to_string(index), file_);
+}
+
+void JsonReader::only_keys(std::initializer_list<const char*> allowed) const {
+  expect_object();
+  for (auto it = j_->begin(); it != j_->end(); ++it) {
+    bool ok = false;
+    for (const char* a : allowed) ok = ok || it.key() == a;
+    if (ok) continue;
+    std::string list;
+    for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+    fail("unknown field '" + it.key() + "'; allowed fields here: " + list, it.key());
+  }
+}
+
+std::string JsonReader::string(const std::string& key) const {
+  const JsonReader c = child(key);
+  if (!c.json().is_string()) c.fail("expected a string, found " + describe(c.json()));
+  return c.json().get<std::string>();
+}
+
+std::string JsonReader::string_or(const std::string& key, const std::string& fallback) const {
+  return has(key) ? string(key) : fallback;
+}
+
+double JsonReader::as_number(double lo, double hi, const std::string& allowed) const {
+  if (!j_->is_number()) fail("expected a number, found " + describe(*j_) + "; allowed: " + allowed);
+  const double v = j_->get<double>();
+  if (!std::isfinite(v)) fail("value " + describe(*j_) + " is not finite; allowed: " + allowed);
+  if (v < lo || v > hi) fail("value " + describe(*j_) + " is out of range; allowed: " + allowed);
+  return v;
+}
+
+double JsonReader::number(const std::string& key, double lo, double hi, const std::string& allowed) const {
+  return child(key).as_number(lo, hi, allowed);
+}
+
+double JsonReader::number_or(const std::string& key, double fallback, double lo, double hi,
+                             const std::string& allowed) const {
+  return has(key) ? number(key, lo, hi, allowed) : fallback;
+}
+
+long long JsonReader::integer_or(const std::string& key, long long fallback, long long lo, long long hi) const {
+  if (!has(key)) return fallback;
+  const JsonReader c = child(key);
+  const std::string allowed = "an integer in " + std::to_string(lo) + ".." + std::to_string(hi);
+  if (!c.json().is_number_integer()) c.fail("expected an integer, found " + describe(c.json()) + "; allowed: " + allowed);
+  const long long v = c.json().get<long long>();
+  if (v < lo || v > hi) c.fail("value " + describe(c.json()) + " is out of range; allowed: " + allowed);
+  return v;
+}
+
+bool JsonReader::boolean_or(const std::string& key, bool fallback) const {
+  if (!has(key)) return fallback;
+  const JsonReader c = child(key);
+  if (!c.json().is_boolean()) c.fail("expected true or false, found " + describe(c.json()));
+  return c.json().get<bool>();
+}
+
+}  // namespace lblight

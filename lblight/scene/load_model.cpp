@@ -1,0 +1,28 @@
+#include "lblight/scene/load_model.h"
+
+#include "lblight/core/error.h"
+#include "lblight/io/vdb_io.h"
+#include "lblight/scene/mesh_source.h"
+#include "lblight/scene/procedural.h"
+#include "lblight/scene/validate.h"
+
+namespace lblight {
+
+ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene) {
+  ModelGrid g;
+  switch (model.density.type) {
+    case SourceType::Procedural: g = make_procedural(model.density.procedural); break;
+    case SourceType::Vdb: g = read_vdb_density(model.density.vdb, {scene.file.string(), model.density.json_path, {}}); break;
+    case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}); break;
+  }
+  // NaN stays NaN through the scale and is reported below with its voxel.
+  const float scale = static_cast<float>(model.density.density_scale);
+  if (scale != 1.0f)
+    for (float& d : g.density) d *= scale;
+  check_density_values(model, g, scene);
+  for (std::size_t i = 0; i < g.density.size(); ++i)
+    if (g.density[i] == 0.0f) g.material[i] = kMaterialMedium;
+  return g;
+}
+
+}  // namespace lblight

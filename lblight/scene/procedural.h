@@ -1,0 +1,15 @@
+// Density sources generated in code, deterministic from their parameters, so example scenes
+// run with no data files.
+#pragma once
+
+#include "lblight/scene/model_grid.h"
+#include "lblight/scene/scene.h"
+
+namespace lblight {
+
+// "cloud": a noise-displaced blob, wider than tall, densest in its core, centred at the origin.
+// "plant": a small tree standing on z = 0 at the origin: a brown trunk with branches and green
+// leaf clusters of partial occupancy.
+ModelGrid make_procedural(const ProceduralSource& src);
+
+}  // namespace lblight

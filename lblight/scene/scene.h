@@ -1,0 +1,108 @@
+// Scene file v1 (docs/scene-format.md): models with a density source and materials, lighting,
+// and solver settings. Parsing checks types, ranges and names; what needs the grids (density
+// range, stability) is checked by validate.h once the grids are loaded.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "lblight/backend/backend.h"
+#include "lblight/core/error.h"
+#include "lblight/lattice/sun.h"
+#include "lblight/scene/material.h"
+
+namespace lblight {
+
+inline constexpr int kSceneVersion = 1;
+
+enum class SourceType { Procedural, Vdb, Mesh };
+
+struct ProceduralSource {
+  std::string shape = "cloud";  // cloud | plant
+  int resolution = 48;          // nodes along the longest edge
+  std::uint64_t seed = 1;
+  double size = 1.0;            // world length of the longest edge
+};
+
+struct VdbSource {
+  std::filesystem::path path;   // resolved against the scene file's folder
+  std::string grid = "density";
+  std::string wood_grid;        // optional: voxels > 0.5 are wood ("brown")
+};
+
+struct MeshSource {
+  std::filesystem::path path;
+  int resolution = 64;
+  int supersample = 8;
+  std::vector<std::string> leaf_patterns, wood_patterns;  // empty = defaults
+  bool has_bounds = false;
+  std::array<double, 3> bounds_min{}, bounds_max{};
+};
+
+struct DensitySpec {
+  SourceType type = SourceType::Procedural;
+  ProceduralSource procedural;
+  VdbSource vdb;
+  MeshSource mesh;
+  double density_scale = 1.0;
+  std::string json_path;  // where in the scene file, for messages
+};
+
+struct ModelSpec {
+  std::string name;
+  DensitySpec density;
+  Material material;       // medium / leaf ("green") nodes: material index 0
+  Material wood_material;  // wood ("brown") nodes: material index 1
+  int margin = 1;
+  std::string json_path;
+};
+
+enum class LightingMode { Base, Static };
+
+struct LightingSpec {
+  LightingMode mode = LightingMode::Base;
+  std::vector<int> solutions;  // base: indices 0..18 to bake (sorted, unique)
+  Vec3d toward_sun{0, 0, 1};   // static: unit vector toward the sun
+  double intensity = 1.0;      // static: sun intensity s
+  double ambient = 0.0;        // static: ambient level a
+};
+
+enum class IterationMode { Auto, Paper, Fixed };
+
+struct SolverSpec {
+  IterationMode mode = IterationMode::Auto;
+  int iterations = 0;          // Fixed: step count
+  double tolerance = 1e-4;     // Auto: target relative error of the stored totals
+  int max_iterations = 0;      // Auto: cap; 0 = 100 x longest lattice edge
+  int check_interval = 0;      // steps between convergence checks; 0 = automatic
+  Precision precision = Precision::Float32;
+};
+
+struct Scene {
+  int version = kSceneVersion;
+  std::string name;
+  std::filesystem::path file;  // as given
+  std::filesystem::path dir;   // folder relative paths resolve against
+  std::vector<ModelSpec> models;
+  LightingSpec lighting;
+  SolverSpec solver;
+  std::string hash;            // "fnv1a64:<hex>" of the canonical JSON
+};
+
+// Reads and parses a scene file; throws Error(InvalidInput) naming file, JSON path, value and the
+// allowed range, or Error(Io) when the file cannot be read.
+Scene load_scene(const std::filesystem::path& file);
+// The same from text (tests); file is used in messages and to resolve relative paths.
+Scene parse_scene(const std::string& text, const std::filesystem::path& file);
+
+// "all", "0,1,5-7" or a JSON-like list, to sorted unique indices in 0..18. Throws
+// Error(InvalidInput) with `where` as location.
+std::vector<int> parse_solution_list(const std::string& text, const Location& where);
+
+const char* to_string(IterationMode mode);
+const char* to_string(SourceType type);
+
+}  // namespace lblight

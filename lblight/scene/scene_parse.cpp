@@ -1,0 +1,364 @@
+// Scene file v1 parser. Every rejection names file, JSON pointer, value and what is allowed.
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "lblight/core/hash.h"
+#include "lblight/scene/json_reader.h"
+#include "lblight/scene/scene.h"
+
+namespace lblight {
+
+const char* to_string(IterationMode mode) {
+  switch (mode) {
+    case IterationMode::Auto: return "auto";
+    case IterationMode::Paper: return "paper";
+    case IterationMode::Fixed: return "fixed";
+  }
+  return "?";
+}
+
+const char* to_string(SourceType type) {
+  switch (type) {
+    case SourceType::Procedural: return "procedural";
+    case SourceType::Vdb: return "vdb";
+    case SourceType::Mesh: return "mesh";
+  }
+  return "?";
+}
+
+std::vector<int> parse_solution_list(const std::string& text, const Location& where) {
+  std::string t;
+  for (char c : text)
+    if (!std::isspace(static_cast<unsigned char>(c)) && c != '[' && c != ']') t += c;
+  std::set<int> out;
+  auto bad = [&](const std::string& why) {
+    throw_invalid("solutions '" + text + "': " + why + "; allowed: all, or indices 0..18 and ranges like 0,1,5-7",
+                  where);
+  };
+  if (t == "all") {
+    for (int i = 0; i < 19; ++i) out.insert(i);
+  } else {
+    if (t.empty()) bad("empty list");
+    std::stringstream ss(t);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+      if (item.empty()) bad("empty item");
+      const auto dash = item.find('-', 1);
+      try {
+        std::size_t used = 0;
+        const int lo = std::stoi(item.substr(0, dash), &used);
+        if (used != item.substr(0, dash).size()) bad("'" + item + "' is not an index");
+        int hi = lo;
+        if (dash != std::string::npos) {
+          const std::string rest = item.substr(dash + 1);
+          hi = std::stoi(rest, &used);
+          if (used != rest.size()) bad("'" + item + "' is not a range");
+        }
+        if (lo < 0 || hi > 18 || lo > hi) bad("'" + item + "' is outside 0..18");
+        for (int i = lo; i <= hi; ++i) out.insert(i);
+      } catch (const std::logic_error&) {
+        bad("'" + item + "' is not an index");
+      }
+    }
+  }
+  return {out.begin(), out.end()};
+}
+
+namespace {
+
+bool valid_name(const std::string& s) {
+  if (s.empty() || s.size() > 64) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) return false;
+  return s != "." && s != "..";
+}
+
+// sigma_a, sigma_s, g: one number for all channels or [r, g, b]; checked per spec sec. 6.
+void read_channel_values(const JsonReader& mat, const std::string& key, const std::string& material_name,
+                         Material& m) {
+  const JsonReader v = mat.child(key);
+  double lo = 0.0, hi = 1e300;
+  std::string allowed = key + " >= 0";
+  if (key == "g") {
+    lo = -1.0;
+    hi = 1.0;
+    allowed = "-1 <= g <= 1";
+  }
+  auto assign = [&](int c, double value) {
+    OpticalParams& p = m.channel[c];
+    (key == "sigma_a" ? p.sigma_a : key == "sigma_s" ? p.sigma_s : p.g) = value;
+  };
+  auto check = [&](const JsonReader& node, int channel_or_all) {
+    const std::string which = channel_or_all < 0 ? "all channels" : std::string("channel ") + kChannelNames[channel_or_all];
+    if (!node.json().is_number())
+      node.fail("material '" + material_name + "', " + which + ": " + key + " must be a number, found " +
+                JsonReader::describe(node.json()) + "; allowed: " + allowed);
+    const double x = node.json().get<double>();
+    if (!std::isfinite(x) || x < lo || x > hi)
+      node.fail("material '" + material_name + "', " + which + ": " + key + " = " + JsonReader::describe(node.json()) +
+                " is out of range; allowed: " + allowed);
+    return x;
+  };
+  if (v.json().is_array()) {
+    if (v.json().size() != kChannels)
+      v.fail("material '" + material_name + "': " + key + " must be one number or [red, green, blue], found " +
+             JsonReader::describe(v.json()));
+    for (int c = 0; c < kChannels; ++c) assign(c, check(v.element(static_cast<std::size_t>(c)), c));
+  } else {
+    const double x = check(v, -1);
+    for (int c = 0; c < kChannels; ++c) assign(c, x);
+  }
+}
+
+std::string preset_list() {
+  std::string s;
+  for (const auto& n : material_preset_names()) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+Material read_material(const JsonReader& r) {
+  if (r.json().is_string()) {
+    const std::string name = r.json().get<std::string>();
+    auto preset = material_preset(name);
+    if (!preset) r.fail("unknown material preset '" + name + "'; allowed: " + preset_list());
+    return *preset;
+  }
+  if (!r.json().is_object())
+    r.fail("a material is a preset name or an object with preset/sigma_a/sigma_s/g/absorb, found " +
+           JsonReader::describe(r.json()));
+  r.only_keys({"preset", "name", "sigma_a", "sigma_s", "g", "absorb"});
+  Material m;
+  const bool has_preset = r.has("preset");
+  if (has_preset) {
+    const std::string name = r.string("preset");
+    auto preset = material_preset(name);
+    if (!preset) r.fail("unknown material preset '" + name + "'; allowed: " + preset_list(), "preset");
+    m = *preset;
+  } else {
+    for (const char* k : {"sigma_a", "sigma_s", "g"})
+      if (!r.has(k)) r.fail(std::string("material without a preset needs '") + k + "'", k);
+  }
+  m.name = r.string_or("name", has_preset ? m.name : "custom");
+  for (const char* k : {"sigma_a", "sigma_s", "g"})
+    if (r.has(k)) read_channel_values(r, k, m.name, m);
+  m.absorbs = r.boolean_or("absorb", m.absorbs);
+  return m;
+}
+
+DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) {
+  r.expect_object();
+  DensitySpec d;
+  d.json_path = r.path();
+  const std::string type = r.string("type");
+  if (type == "procedural") {
+    r.only_keys({"type", "shape", "resolution", "seed", "size", "density_scale"});
+    d.type = SourceType::Procedural;
+    d.procedural.shape = r.string_or("shape", "cloud");
+    if (d.procedural.shape != "cloud" && d.procedural.shape != "plant")
+      r.fail("unknown procedural shape '" + d.procedural.shape + "'; allowed: cloud, plant", "shape");
+    d.procedural.resolution = static_cast<int>(r.integer_or("resolution", 48, 4, 1024));
+    d.procedural.seed = static_cast<std::uint64_t>(r.integer_or("seed", 1, 0, (1ll << 53)));
+    d.procedural.size = r.number_or("size", 1.0, 1e-9, 1e9, "a positive length");
+  } else if (type == "vdb") {
+    r.only_keys({"type", "path", "grid", "wood_grid", "density_scale"});
+    d.type = SourceType::Vdb;
+    const std::filesystem::path p = r.string("path");
+    d.vdb.path = p.is_absolute() ? p : dir / p;
+    d.vdb.grid = r.string_or("grid", "density");
+    d.vdb.wood_grid = r.string_or("wood_grid", "");
+  } else if (type == "mesh") {
+    r.only_keys({"type", "path", "resolution", "supersample", "leaf_patterns", "wood_patterns", "bounds",
+                 "density_scale"});
+    d.type = SourceType::Mesh;
+    const std::filesystem::path p = r.string("path");
+    d.mesh.path = p.is_absolute() ? p : dir / p;
+    d.mesh.resolution = static_cast<int>(r.integer_or("resolution", 64, 4, 2048));
+    d.mesh.supersample = static_cast<int>(r.integer_or("supersample", 8, 1, 64));
+    for (const char* key : {"leaf_patterns", "wood_patterns"}) {
+      if (!r.has(key)) continue;
+      const JsonReader list = r.child(key);
+      if (!list.json().is_array()) list.fail("expected a list of name patterns");
+      auto& out = std::string(key) == "leaf_patterns" ? d.mesh.leaf_patterns : d.mesh.wood_patterns;
+      for (std::size_t i = 0; i < list.json().size(); ++i) {
+        const JsonReader e = list.element(i);
+        if (!e.json().is_string() || e.json().get<std::string>().empty()) e.fail("expected a non-empty string");
+        out.push_back(e.json().get<std::string>());
+      }
+    }
+    if (r.has("bounds")) {
+      const JsonReader b = r.child("bounds");
+      b.only_keys({"min", "max"});
+      for (const char* key : {"min", "max"}) {
+        const JsonReader v = b.child(key);
+        if (!v.json().is_array() || v.json().size() != 3) v.fail("expected [x, y, z]");
+        for (std::size_t i = 0; i < 3; ++i)
+          (std::string(key) == "min" ? d.mesh.bounds_min : d.mesh.bounds_max)[i] =
+              v.element(i).as_number(-1e30, 1e30, "a finite coordinate");
+      }
+      for (int i = 0; i < 3; ++i)
+        if (!(d.mesh.bounds_max[i] > d.mesh.bounds_min[i])) b.fail("bounds max must exceed min on every axis");
+      d.mesh.has_bounds = true;
+    }
+  } else {
+    r.fail("unknown density type '" + type + "'; allowed: procedural, vdb, mesh", "type");
+  }
+  d.density_scale = r.number_or("density_scale", 1.0, 0.0, 1e30, "density_scale >= 0");
+  return d;
+}
+
+ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
+  r.only_keys({"name", "density", "material", "wood_material", "margin"});
+  ModelSpec m;
+  m.json_path = r.path();
+  m.name = r.string("name");
+  if (!valid_name(m.name))
+    r.fail("model name '" + m.name + "' is not usable as a file name; allowed: 1-64 of A-Z a-z 0-9 _ - .", "name");
+  m.density = read_density(r.child("density"), dir);
+  m.material = read_material(r.child("material"));
+  m.wood_material = r.has("wood_material") ? read_material(r.child("wood_material")) : default_wood_for(m.material);
+  m.margin = static_cast<int>(r.integer_or("margin", 1, 1, 64));
+  return m;
+}
+
+Vec3d read_vec3(const JsonReader& r) {
+  if (!r.json().is_array() || r.json().size() != 3) r.fail("expected [x, y, z], found " + JsonReader::describe(r.json()));
+  Vec3d v{r.element(0).as_number(-1e30, 1e30, "a finite number"), r.element(1).as_number(-1e30, 1e30, "a finite number"),
+          r.element(2).as_number(-1e30, 1e30, "a finite number")};
+  return v;
+}
+
+LightingSpec read_lighting(const JsonReader& r) {
+  LightingSpec l;
+  r.expect_object();
+  const std::string mode = r.string_or("mode", "base");
+  if (mode == "base") {
+    r.only_keys({"mode", "solutions"});
+    l.mode = LightingMode::Base;
+    if (r.has("solutions")) {
+      const JsonReader s = r.child("solutions");
+      if (s.json().is_string()) {
+        l.solutions = parse_solution_list(s.json().get<std::string>(), s.location());
+      } else if (s.json().is_array()) {
+        std::string text;
+        for (std::size_t i = 0; i < s.json().size(); ++i) {
+          const JsonReader e = s.element(i);
+          if (!e.json().is_number_integer()) e.fail("expected a solution index 0..18, found " + JsonReader::describe(e.json()));
+          text += (i ? "," : "") + std::to_string(e.json().get<long long>());
+        }
+        l.solutions = parse_solution_list(text, s.location());
+      } else {
+        s.fail("expected \"all\", a string like \"0,1,5-7\" or a list of indices");
+      }
+    } else {
+      l.solutions = parse_solution_list("all", r.location());
+    }
+  } else if (mode == "static") {
+    r.only_keys({"mode", "sun", "intensity", "ambient"});
+    l.mode = LightingMode::Static;
+    const JsonReader sun = r.child("sun");
+    sun.expect_object();
+    if (sun.has("direction")) {
+      sun.only_keys({"direction"});
+      Vec3d d = read_vec3(sun.child("direction"));
+      const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+      if (!(len > 0)) sun.fail("sun direction must be non-zero", "direction");
+      l.toward_sun = {d.x / len, d.y / len, d.z / len};
+    } else {
+      sun.only_keys({"elevation", "azimuth"});
+      const double el = sun.number("elevation", -90, 90, "-90..90 degrees");
+      const double az = sun.number("azimuth", -360, 360, "-360..360 degrees");
+      l.toward_sun = toward_sun_from_angles(el, az);
+    }
+    l.intensity = r.number_or("intensity", 1.0, 0.0, 1e30, "intensity >= 0");
+    l.ambient = r.number_or("ambient", 0.0, 0.0, 1e30, "ambient >= 0");
+  } else {
+    r.fail("unknown lighting mode '" + mode + "'; allowed: base, static", "mode");
+  }
+  return l;
+}
+
+SolverSpec read_solver(const JsonReader& r) {
+  r.only_keys({"iterations", "tolerance", "max_iterations", "check_interval", "precision"});
+  SolverSpec s;
+  if (r.has("iterations")) {
+    const JsonReader it = r.child("iterations");
+    if (it.json().is_string()) {
+      const std::string v = it.json().get<std::string>();
+      if (v == "auto") s.mode = IterationMode::Auto;
+      else if (v == "paper") s.mode = IterationMode::Paper;
+      else it.fail("unknown iteration mode '" + v + "'; allowed: auto, paper, or a step count 1..100000000");
+    } else if (it.json().is_number_integer()) {
+      const long long n = it.json().get<long long>();
+      if (n < 1 || n > 100000000) it.fail("step count " + std::to_string(n) + " is out of range; allowed: 1..100000000");
+      s.mode = IterationMode::Fixed;
+      s.iterations = static_cast<int>(n);
+    } else {
+      it.fail("expected \"auto\", \"paper\" or a step count, found " + JsonReader::describe(it.json()));
+    }
+  }
+  s.tolerance = r.number_or("tolerance", 1e-4, 1e-15, 0.5, "0 < tolerance <= 0.5");
+  if (r.has("tolerance") && !(s.tolerance > 0)) r.fail("tolerance must be > 0", "tolerance");
+  s.max_iterations = static_cast<int>(r.integer_or("max_iterations", 0, 1, 100000000));
+  s.check_interval = static_cast<int>(r.integer_or("check_interval", 0, 1, 100000));
+  const std::string prec = r.string_or("precision", "float32");
+  if (prec == "float32") s.precision = Precision::Float32;
+  else if (prec == "float64") s.precision = Precision::Float64;
+  else if (prec == "float16") s.precision = Precision::Float16;
+  else r.fail("unknown precision '" + prec + "'; allowed: float32, float64, float16", "precision");
+  return s;
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    // Includes numbers too large for a double (1e999): JSON has no Inf or NaN, so a value that
+    // would overflow is rejected here, with the offending text in the message.
+    throw_invalid(std::string("not valid JSON (allowed: finite numbers only): ") + e.what(), {file.string(), {}, {}});
+  }
+  const JsonReader root(j, "", file.string());
+  root.expect_object();
+  root.only_keys({"version", "name", "models", "lighting", "solver", "output", "$schema", "comment"});
+  Scene scene;
+  scene.file = file;
+  scene.dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
+  if (!root.has("version")) root.fail("required field 'version' is missing; this lblight reads version 1", "version");
+  const long long version = root.integer_or("version", 1, 1, 1000000);
+  if (version != kSceneVersion)
+    root.fail("scene version " + std::to_string(version) + " is not supported; allowed: 1", "version");
+  scene.name = root.string_or("name", file.stem().string());
+  const JsonReader models = root.child("models");
+  if (!models.json().is_array() || models.json().empty()) models.fail("expected a non-empty list of models");
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < models.json().size(); ++i) {
+    ModelSpec m = read_model(models.element(i), scene.dir);
+    if (!names.insert(m.name).second)
+      models.element(i).fail("model name '" + m.name + "' is used twice; names must be unique", "name");
+    scene.models.push_back(std::move(m));
+  }
+  if (root.has("lighting")) scene.lighting = read_lighting(root.child("lighting"));
+  else scene.lighting.solutions = parse_solution_list("all", root.location());
+  if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
+  if (root.has("output")) root.child("output").only_keys({});
+  scene.hash = "fnv1a64:" + hex64(fnv1a64(j.dump()));
+  return scene;
+}
+
+Scene load_scene(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    if (!std::filesystem::exists(file)) throw_invalid("scene file does not exist", {file.string(), {}, {}});
+    throw_io("cannot read scene file", {file.string(), {}, {}});
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_scene(ss.str(), file);
+}
+
+}  // namespace lblight

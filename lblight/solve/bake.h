@@ -1,0 +1,52 @@
+// Runs a plan on a backend: batches of systems (solution x distinct channel), each iterated to
+// its step policy with convergence measured on the backend, results handed to an observer.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <vector>
+
+#include "lblight/backend/backend.h"
+#include "lblight/solve/convergence.h"
+#include "lblight/solve/plan.h"
+
+namespace lblight {
+
+struct SolutionResult {
+  SolutionPlan plan;
+  int iterations = 0;
+  double seconds = 0;          // wall time of its batch, shared evenly by the solutions in it
+  double error_estimate = 0;   // relative L2, the worst channel (inf = not estimable)
+  double error_estimate_max = 0;  // relative max norm, the worst channel
+  bool converged = false;      // Auto: reached the tolerance; Fixed/Paper: not applicable (false)
+  std::vector<CheckPoint> history;                    // worst channel at every check
+  std::array<std::vector<float>, 3> totals;           // R, G, B per lattice node
+};
+
+struct BakeProgress {
+  const ModelPlan* model = nullptr;
+  std::vector<const SolutionPlan*> batch;
+  int step = 0;
+  int planned_steps = 0;       // Fixed/Paper: exact; Auto: the cap
+  double error_estimate = 0;
+  double seconds = 0;
+};
+
+class BakeObserver {
+ public:
+  virtual ~BakeObserver() = default;
+  virtual void model_started(const ModelPlan&, const Backend&, std::size_t /*bytes*/) {}
+  virtual void progress(const BakeProgress&) {}
+  // The result may be moved from.
+  virtual void solution_done(const ModelPlan& model, SolutionResult& result) = 0;
+};
+
+struct BakeOptions {
+  Precision precision = Precision::Float32;
+  int max_systems = 0;                        // per batch; 0 = as memory allows
+  const std::atomic<bool>* cancel = nullptr;  // checked between step chunks
+};
+
+void bake_model(const ModelPlan& model, const Backend& backend, const BakeOptions& options, BakeObserver& observer);
+
+}  // namespace lblight

@@ -1,0 +1,74 @@
+#include "lblight/solve/convergence.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace lblight {
+
+double ConvergenceMonitor::round_off_for(Precision p) {
+  switch (p) {
+    case Precision::Float64: return 1e-13;
+    case Precision::Float16: return 2e-3;
+    default: return 2e-6;
+  }
+}
+
+namespace {
+// Slope of log(y) against the check index over the last n entries of ys.
+double log_slope(const std::vector<double>& ys, std::size_t n) {
+  const std::size_t first = ys.size() - n;
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = static_cast<double>(i), y = std::log(ys[first + i]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  const double dn = static_cast<double>(n);
+  return (dn * sxy - sx * sy) / (dn * sxx - sx * sx);
+}
+}  // namespace
+
+double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floor) const {
+  // Trailing checks with the same interval as the last one (ratios need equal intervals).
+  std::vector<double> ys;
+  const int interval = history_.back().interval;
+  for (auto it = history_.rbegin(); it != history_.rend() && it->interval == interval && ys.size() < 8; ++it)
+    ys.insert(ys.begin(), (*it).*change);
+  const std::size_t n = ys.size();
+  const double now = ys.back();
+  if (!std::isfinite(now)) return kUnknown;
+  if (now == 0.0) return floor;
+  // At the noise floor the ratios are noise; the state is as converged as the precision allows.
+  if (now <= round_off_) return std::max(round_off_, floor);
+  if (n < 4) return kUnknown;
+  for (double y : ys)
+    if (!(y > 0.0)) return kUnknown;
+  const double r1 = ys[n - 1] / ys[n - 2], r2 = ys[n - 2] / ys[n - 3], r3 = ys[n - 3] / ys[n - 4];
+  const double r = std::max(r1, std::exp(log_slope(ys, std::min<std::size_t>(n, 6))));
+  if (r >= 1.0) return kUnknown;  // not contracting yet (light still spreading)
+  // Trust the geometric tail only once the ratio has settled: while fast modes are still dying
+  // the ratio climbs toward the slowest one and any extrapolation would be too optimistic.
+  const double gap = 1.0 - r;
+  if (std::fabs(r1 - r2) > 0.1 * gap || std::fabs(r2 - r3) > 0.2 * gap) return kUnknown;
+  // Factor 2: even a settled ratio keeps creeping up while the last fast modes fade.
+  return std::max(2.0 * now * r / gap, floor);
+}
+
+void ConvergenceMonitor::record(int step, int interval, double seconds, const Residual& r) {
+  CheckPoint c;
+  c.step = step;
+  c.interval = interval;
+  c.seconds = seconds;
+  c.change_l2 = r.total_sq > 0 ? std::sqrt(r.diff_sq / r.total_sq) : (r.diff_sq > 0 ? 1.0 : 0.0);
+  c.change_max = r.total_max > 0 ? r.diff_max / r.total_max : (r.diff_max > 0 ? 1.0 : 0.0);
+  c.deficit_l2 = r.total_sq > 0 ? std::sqrt(r.deficit_sq / r.total_sq) : 0.0;
+  const double deficit_max = r.total_max > 0 ? r.deficit_max / r.total_max : 0.0;
+  if (!r.finite) c.change_l2 = c.change_max = kUnknown;
+  history_.push_back(c);
+  history_.back().error_estimate = tail_estimate(&CheckPoint::change_l2, c.deficit_l2);
+  history_.back().error_estimate_max = tail_estimate(&CheckPoint::change_max, deficit_max);
+}
+
+}  // namespace lblight

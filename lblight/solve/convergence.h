@@ -1,0 +1,53 @@
+// Error estimate for the plain LB iteration f <- A f + b (spec sec. 5). Totals are measured
+// every K steps. Once the changes shrink geometrically with ratio r per interval, the distance
+// to the fixed point is the tail of that series: change * r / (1 - r). The estimate is given only
+// once the ratio has settled (successive ratios agree to a fraction of 1 - r): while faster modes
+// are dying the ratio climbs and any extrapolation would be optimistic. r is the larger of the
+// last ratio and a log-linear fit over the last checks (robust to float noise), and the tail is
+// doubled as a margin for the ratio's remaining creep. Changes at the round-off level of the
+// storage precision count as converged to that level. The estimate is never below the f_0
+// reservoir deficit (backend.h, Residual), which decays too slowly to show in the changes.
+#pragma once
+
+#include <limits>
+#include <vector>
+
+#include "lblight/backend/backend.h"
+
+namespace lblight {
+
+struct CheckPoint {
+  int step = 0;
+  int interval = 0;             // steps since the previous check
+  double seconds = 0;
+  double change_l2 = 0;         // ||T_t - T_{t-K}||_2 / ||T_t||_2 over interior nodes
+  double change_max = 0;        // max |T_t - T_{t-K}| / max |T_t|
+  double error_estimate = 0;    // estimated relative L2 distance to steady state (inf = unknown)
+  double error_estimate_max = 0;  // the same in the max norm
+  double deficit_l2 = 0;        // f_0 reservoir still to fill, relative L2 (Residual::deficit_sq)
+};
+
+class ConvergenceMonitor {
+ public:
+  // round_off: relative change that is pure float noise for this storage precision.
+  explicit ConvergenceMonitor(double round_off) : round_off_(round_off) {}
+
+  // A measure() taken at `step`, `interval` steps after the previous one.
+  void record(int step, int interval, double seconds, const Residual& r);
+
+  // The relative L2 error estimate `bake` stops on (inf until it can be estimated).
+  double error_estimate() const { return history_.empty() ? kUnknown : history_.back().error_estimate; }
+  double error_estimate_max() const { return history_.empty() ? kUnknown : history_.back().error_estimate_max; }
+  const std::vector<CheckPoint>& history() const { return history_; }
+
+  static constexpr double kUnknown = std::numeric_limits<double>::infinity();
+  static double round_off_for(Precision p);
+
+ private:
+  double tail_estimate(double CheckPoint::*change, double floor) const;
+
+  double round_off_;
+  std::vector<CheckPoint> history_;
+};
+
+}  // namespace lblight

@@ -1,0 +1,158 @@
+#include "lblight/solve/plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "lblight/core/error.h"
+#include "lblight/lattice/d3q19.h"
+#include "lblight/scene/load_model.h"
+
+namespace lblight {
+
+std::string base_grid_name(int index) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, "B%02d", index);
+  return buf;
+}
+
+LatticeGeometry build_lattice(const ModelGrid& g, int margin) {
+  LatticeGeometry lat;
+  lat.dims = {g.dims.nx + 2 * margin, g.dims.ny + 2 * margin, g.dims.nz + 2 * margin};
+  lat.density.assign(lat.dims.count(), 0.0f);
+  lat.material.assign(lat.dims.count(), kMaterialMedium);
+  bool wood = false;
+  for (int k = 0; k < g.dims.nz; ++k)
+    for (int j = 0; j < g.dims.ny; ++j)
+      for (int i = 0; i < g.dims.nx; ++i) {
+        const std::size_t src = g.dims.index(i, j, k);
+        const std::size_t dst = lat.dims.index(i + margin, j + margin, k + margin);
+        lat.density[dst] = g.density[src];
+        lat.material[dst] = g.material[src];
+        wood = wood || (g.material[src] == kMaterialWood && g.density[src] > 0.0f);
+      }
+  lat.material_count = wood ? 2 : 1;
+  return lat;
+}
+
+namespace {
+
+// Mean cosine of the discrete phase function seen from an axial direction.
+double mean_cosine(double g) {
+  double s = 0;
+  for (int i = 1; i < d3q19::kQ; ++i) {
+    const double len = std::sqrt(static_cast<double>(d3q19::length_sq(i)));
+    s += d3q19::weight(i) * normalized_phase(g, i, 1) * (d3q19::cx(i) / len);
+  }
+  return s;
+}
+
+// Rough step count for the plain iteration to reach `tol` (shown by validate; the bake itself
+// stops on the measured error): the slowest diffusion mode of the occupied box plus the
+// per-step loss of absorbing materials, on top of the crossing time.
+double estimate_steps(const ModelPlan& mp, double tol) {
+  const Dims& d = mp.lattice.dims;
+  double rho_sum = 0;
+  std::size_t n = 0;
+  for (float r : mp.grid.density)
+    if (r > 0) {
+      rho_sum += r;
+      ++n;
+    }
+  if (n == 0) return d.longest();
+  const double rho = rho_sum / static_cast<double>(n);
+  double slowest = 1e300;
+  for (int c = 0; c < kChannels; ++c) {
+    const OpticalParams& p = mp.spec->material.channel[c];
+    const double sigma_tr = p.sigma_a + p.sigma_s * (1.0 - mean_cosine(p.g));
+    const double st = std::max(1e-6, rho * sigma_tr);
+    const double diff = std::max(1e-6, (2.0 / st - 1.0) / (4.0 * (1.0 + rho * p.sigma_a)));
+    const double pi2 = 9.8696044010893586;
+    const double decay_diffusion = diff * pi2 *
+                                   (1.0 / (d.nx * d.nx) + 1.0 / (d.ny * d.ny) + 1.0 / (d.nz * d.nz));
+    const double decay_absorb = mp.spec->material.absorbs ? rho * p.sigma_a : 0.0;
+    slowest = std::min(slowest, decay_diffusion + decay_absorb);
+  }
+  return d.longest() + std::log(1.0 / tol) / slowest;
+}
+
+bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int count) {
+  for (int k = 0; k < count; ++k)
+    if (a.omega[k] != b.omega[k] || a.absorbs[k] != b.absorbs[k]) return false;
+  return true;
+}
+
+}  // namespace
+
+BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
+  BakePlan plan;
+  plan.scene = &scene;
+  plan.precision = ov.precision.value_or(scene.solver.precision);
+  plan.models.reserve(scene.models.size());
+  for (const ModelSpec& spec : scene.models) {
+    ModelPlan mp;
+    mp.spec = &spec;
+    mp.grid = load_model_grid(spec, scene);
+    mp.stats = check_stability(spec, mp.grid, scene, plan.warnings);
+    mp.lattice = build_lattice(mp.grid, spec.margin);
+    for (int c = 0; c < 3; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
+
+    // One system per distinct channel: a grey material solves once and fills R, G and B.
+    for (int c = 0; c < kChannels; ++c) {
+      ChannelMaterials ch;
+      ch.omega[kMaterialMedium] = build_omega(spec.material.channel[c]);
+      ch.absorbs[kMaterialMedium] = spec.material.absorbs;
+      ch.omega[kMaterialWood] = build_omega(spec.wood_material.channel[c]);
+      ch.absorbs[kMaterialWood] = spec.wood_material.absorbs;
+      int found = -1;
+      for (std::size_t u = 0; u < mp.channels.size(); ++u)
+        if (same_channel(mp.channels[u], ch, mp.lattice.material_count)) found = static_cast<int>(u);
+      if (found < 0) {
+        found = static_cast<int>(mp.channels.size());
+        mp.channels.push_back(ch);
+      }
+      mp.channel_of[c] = found;
+    }
+
+    if (scene.lighting.mode == LightingMode::Static) {
+      if (ov.solutions) throw_invalid("--solutions applies to base lighting; this scene bakes static lighting",
+                                      {scene.file.string(), "/lighting/mode", {}});
+      SolutionPlan s;
+      s.index = -1;
+      s.grid_name = "light";
+      const Vec3d& t = scene.lighting.toward_sun;
+      const std::array<double, 19> b =
+          static_boundary(decompose_direction({-t.x, -t.y, -t.z}), scene.lighting.intensity, scene.lighting.ambient);
+      s.boundary = b;
+      mp.solutions.push_back(s);
+    } else {
+      for (int idx : ov.solutions.value_or(scene.lighting.solutions)) {
+        SolutionPlan s;
+        s.index = idx;
+        s.grid_name = base_grid_name(idx);
+        s.direction = {d3q19::cx(idx), d3q19::cy(idx), d3q19::cz(idx)};
+        s.boundary = base_boundary(idx);
+        mp.solutions.push_back(s);
+      }
+    }
+
+    const int longest = mp.lattice.dims.longest();
+    StepPolicy& st = mp.steps;
+    st.mode = ov.mode.value_or(scene.solver.mode);
+    st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
+    st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
+                                                        : std::clamp((longest + 2) / 4, 4, 16);
+    st.min_steps = longest;
+    st.max_steps = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 100 * longest;
+    if (st.mode == IterationMode::Paper) st.fixed_steps = 2 * longest;
+    if (st.mode == IterationMode::Fixed) st.fixed_steps = ov.mode ? ov.iterations : scene.solver.iterations;
+    mp.estimated_steps = st.mode == IterationMode::Auto
+                             ? std::clamp(estimate_steps(mp, st.tolerance), static_cast<double>(st.min_steps),
+                                          static_cast<double>(st.max_steps))
+                             : st.fixed_steps;
+    plan.models.push_back(std::move(mp));
+  }
+  return plan;
+}
+
+}  // namespace lblight

@@ -1,0 +1,71 @@
+// What a bake will do, decided before any solving: lattices, materials per channel, the
+// solutions and their boundary values, step policy and memory. `validate` prints it; `bake`
+// runs it.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lblight/backend/backend.h"
+#include "lblight/scene/model_grid.h"
+#include "lblight/scene/scene.h"
+#include "lblight/scene/validate.h"
+
+namespace lblight {
+
+struct PlanOverrides {
+  std::optional<std::vector<int>> solutions;  // --solutions
+  std::optional<IterationMode> mode;          // --iterations
+  int iterations = 0;                         //   with mode Fixed
+  std::optional<double> tolerance;            // --tolerance
+  std::optional<Precision> precision;
+};
+
+struct SolutionPlan {
+  int index = 0;                   // base solution 0..18, or -1 for a static bake
+  std::string grid_name;           // B00..B18, or "light"
+  std::array<int, 3> direction{};  // c_index (zero for ambient and static)
+  std::array<double, 19> boundary{};
+};
+
+struct StepPolicy {
+  IterationMode mode = IterationMode::Auto;
+  int fixed_steps = 0;      // Fixed and Paper
+  int min_steps = 0;        // Auto: never stop before light has crossed the lattice
+  int max_steps = 0;        // Auto: give up (not converged) after this many
+  int check_interval = 16;  // steps between convergence measurements
+  double tolerance = 1e-4;
+};
+
+struct ModelPlan {
+  const ModelSpec* spec = nullptr;
+  ModelGrid grid;
+  LatticeGeometry lattice;
+  std::array<int, 3> lattice_index_min{};  // index coordinate of lattice node (0, 0, 0)
+  std::vector<ChannelMaterials> channels;  // distinct channel materials (1 when R = G = B)
+  std::array<int, 3> channel_of{};         // colour channel -> entry of `channels`
+  std::vector<SolutionPlan> solutions;
+  StepPolicy steps;
+  GridStats stats;
+  double estimated_steps = 0;              // per solution
+  std::size_t systems() const { return solutions.size() * channels.size(); }
+};
+
+struct BakePlan {
+  const Scene* scene = nullptr;
+  Precision precision = Precision::Float32;
+  std::vector<ModelPlan> models;
+  std::vector<std::string> warnings;
+};
+
+// Loads every model's grid, validates it (spec sec. 6) and lays out the work.
+BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {});
+
+// The lattice for a grid: grown by `margin` empty nodes on every side (spec sec. 4).
+LatticeGeometry build_lattice(const ModelGrid& grid, int margin);
+
+std::string base_grid_name(int index);  // "B07"
+
+}  // namespace lblight

@@ -1,0 +1,168 @@
+// The command-line contract: help, exit codes, no partial output, readable errors.
+#include <catch2/catch.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <limits>
+
+#include "lblight/io/vdb_io.h"
+#include "tests/test_support.h"
+
+using namespace lblight;
+using namespace lblight::test;
+namespace fs = std::filesystem;
+
+namespace {
+const char* kTinyScene = R"({
+  "version": 1, "name": "tiny",
+  "models": [{"name": "cloud", "density": {"type": "procedural", "shape": "cloud", "resolution": 10},
+              "material": "cloud"}],
+  "lighting": {"mode": "base", "solutions": "0,1,5"},
+  "solver": {"iterations": "paper"}
+})";
+
+std::string model_with(const std::string& density, const std::string& material) {
+  return R"({"version": 1, "models": [{"name": "m", "density": )" + density + R"(, "material": )" + material + "}]}";
+}
+const std::string kProc = R"({"type": "procedural", "resolution": 8})";
+
+// Runs bake on `scene_text` and checks it is rejected as invalid input without output.
+void expect_rejected(const std::string& scene_text, const std::string& must_mention) {
+  TempDir tmp;
+  write_text(tmp / "bad.json", scene_text);
+  const CliResult r = run_cli("bake bad.json -o out", tmp.path());
+  INFO(scene_text << "\nstderr: " << r.err);
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.find(must_mention) != std::string::npos);
+  CHECK(r.err.find("bad.json") != std::string::npos);
+  CHECK_FALSE(fs::exists(tmp / "out"));
+  int leftovers = 0;
+  for (const auto& e : fs::directory_iterator(tmp.path())) leftovers += e.path().filename() != "bad.json";
+  CHECK(leftovers == 0);
+}
+}  // namespace
+
+TEST_CASE("--help and --version", "[cli]") {
+  const CliResult h = run_cli("--help");
+  CHECK(h.exit_code == 0);
+  for (const char* sub : {"bake", "validate", "inspect", "bench"}) CHECK(h.out.find(sub) != std::string::npos);
+  const CliResult b = run_cli("bake --help");
+  CHECK(b.exit_code == 0);
+  for (const char* opt : {"--iterations", "--tolerance", "--solutions", "--backend", "--threads", "-o"})
+    CHECK(b.out.find(opt) != std::string::npos);
+  const CliResult v = run_cli("--version");
+  CHECK(v.exit_code == 0);
+  CHECK(v.out.find("lblight 0.") != std::string::npos);
+  CHECK(run_cli("").exit_code == 2);
+  CHECK(run_cli("bake").exit_code == 2);
+  CHECK(run_cli("bake x.json --backend gpu").exit_code == 2);
+}
+
+TEST_CASE("bake writes a manifest, a vdb and a summary that inspect reads back", "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "tiny.json", kTinyScene);
+  const CliResult r = run_cli("bake tiny.json -o out --backend cpu", tmp.path());
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  CHECK(r.out.find("B05") != std::string::npos);
+  CHECK(r.out.find("error estimate") != std::string::npos);
+  CHECK(r.err.find("[3/3]") != std::string::npos);
+  const nlohmann::json m = nlohmann::json::parse(read_text(tmp / "out" / "manifest.json"));
+  CHECK(m["lblight_version"].get<std::string>().rfind("0.", 0) == 0);
+  CHECK(m["models"][0]["lattice"]["dims"] == nlohmann::json({12, 10, 8}));
+  const auto& sol = m["models"][0]["solutions"];
+  REQUIRE(sol.size() == 3);
+  CHECK(sol[2]["index"] == 5);
+  CHECK(sol[2]["direction"] == nlohmann::json({0, 0, 1}));
+  CHECK(sol[2]["iterations"] == 24);  // paper: 2 x longest edge (12)
+  CHECK(sol[2]["grid"] == "B05");
+  CHECK(sol[2].contains("error_estimate"));  // null: 24 steps are too few to estimate
+  CHECK(fs::exists(tmp / "out" / "cloud.vdb"));
+
+  const CliResult i = run_cli("inspect out", tmp.path());
+  CHECK(i.exit_code == 0);
+  CHECK(i.out.find("B01") != std::string::npos);
+  const CliResult iv = run_cli("inspect out/cloud.vdb --json", tmp.path());
+  CHECK(iv.exit_code == 0);
+  CHECK(nlohmann::json::parse(iv.out)["grids"].size() == 4);
+  const CliResult is = run_cli("inspect tiny.json", tmp.path());
+  CHECK(is.exit_code == 0);
+  CHECK(is.out.find("cloud") != std::string::npos);
+
+  // a second bake replaces the previous output; an unrelated folder is never replaced
+  CHECK(run_cli("bake tiny.json -o out --solutions 1 --iterations auto -q", tmp.path()).exit_code == 0);
+  const auto again = nlohmann::json::parse(read_text(tmp / "out" / "manifest.json"))["models"][0]["solutions"];
+  REQUIRE(again.size() == 1);
+  CHECK(again[0]["converged"] == true);
+  CHECK(again[0]["error_estimate"].get<double>() < 1e-4);
+  fs::create_directories(tmp / "precious");
+  write_text(tmp / "precious" / "notes.txt", "keep me");
+  const CliResult p = run_cli("bake tiny.json -o precious", tmp.path());
+  CHECK(p.exit_code == 2);
+  CHECK(read_text(tmp / "precious" / "notes.txt") == "keep me");
+}
+
+TEST_CASE("validate prints the plan without writing anything", "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "tiny.json", kTinyScene);
+  const CliResult r = run_cli("validate tiny.json --no-timing", tmp.path());
+  INFO(r.err);
+  CHECK(r.exit_code == 0);
+  CHECK(r.out.find("lattice 12x10x8") != std::string::npos);
+  CHECK(r.out.find("scene is valid") != std::string::npos);
+  const CliResult j = run_cli("validate tiny.json --json", tmp.path());
+  REQUIRE(j.exit_code == 0);
+  const auto plan = nlohmann::json::parse(j.out);
+  CHECK(plan["models"][0]["solutions"].size() == 3);
+  CHECK(plan["estimated_seconds"].get<double>() > 0);
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(tmp.path())) entries += e.exists();
+  CHECK(entries == 1);
+}
+
+TEST_CASE("Every validation rule of spec sec. 6 exits 2 and writes nothing", "[cli][validate]") {
+  expect_rejected(model_with(kProc, R"({"sigma_a": -0.01, "sigma_s": 0.5, "g": 0})"), "sigma_a");
+  expect_rejected(model_with(kProc, R"({"sigma_a": 0.01, "sigma_s": [0.5, 0.5, -0.5], "g": 0})"), "channel blue");
+  expect_rejected(model_with(kProc, R"({"sigma_a": 0.01, "sigma_s": 0.5, "g": -1.01})"), "-1 <= g <= 1");
+  expect_rejected(model_with(kProc, R"({"sigma_a": 1e999, "sigma_s": 0.5, "g": 0})"), "1e999");
+  expect_rejected(model_with(R"({"type": "procedural", "resolution": 8, "density_scale": 2.5})", R"("cloud")"),
+                  "after density_scale");
+  expect_rejected(model_with(kProc, R"({"sigma_a": 0.2, "sigma_s": 1.9, "g": 0.5})"), "rho * sigma_t < 2");
+  expect_rejected(R"({"version": 1, "models": [{"name": "m", "density": {"type": "procedural"}, "material": "cloud",
+      "extra": true}]})", "unknown field 'extra'");
+  expect_rejected("{ not json", "not valid JSON");
+}
+
+TEST_CASE("NaN and Inf in a density grid are rejected with their voxel", "[cli][validate]") {
+  TempDir tmp;
+  std::vector<float> density(4 * 4 * 4, 0.5f);
+  // Inf rather than NaN: OpenVDB's dense-to-sparse copy treats NaN as background and drops it,
+  // so our own writer cannot produce a NaN voxel. Both go through the same isfinite check.
+  density[21] = std::numeric_limits<float>::infinity();
+  DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}};
+  write_vdb(tmp / "nan.vdb", frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
+  write_text(tmp / "bad.json", model_with(R"({"type": "vdb", "path": "nan.vdb"})", R"("cloud")"));
+  const CliResult r = run_cli("bake bad.json -o out", tmp.path());
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.find("inf") != std::string::npos);
+  CHECK(r.err.find("voxel (1, 1, 1)") != std::string::npos);
+  CHECK_FALSE(fs::exists(tmp / "out"));
+
+  write_text(tmp / "missing.json", model_with(R"({"type": "vdb", "path": "nope.vdb"})", R"("cloud")"));
+  const CliResult m = run_cli("bake missing.json -o out2", tmp.path());
+  CHECK(m.exit_code == 2);
+  CHECK(m.err.find("nope.vdb") != std::string::npos);
+}
+
+TEST_CASE("Missing files and bad options are invalid input", "[cli]") {
+  TempDir tmp;
+  const CliResult r = run_cli("bake does-not-exist.json -o out", tmp.path());
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.find("does-not-exist.json") != std::string::npos);
+  write_text(tmp / "tiny.json", kTinyScene);
+  CHECK(run_cli("bake tiny.json --iterations forever", tmp.path()).exit_code == 2);
+  CHECK(run_cli("bake tiny.json --solutions 0,25", tmp.path()).exit_code == 2);
+  CHECK(run_cli("bake tiny.json --precision float16 --backend cpu", tmp.path()).exit_code == 2);
+  CHECK_FALSE(fs::exists(tmp / "tiny-bake"));
+}

@@ -1,0 +1,124 @@
+// Collision matrix properties the spec states (sec. 2) and 000 sec. 7 derives.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+
+#include "lblight/lattice/collision_op.h"
+#include "lblight/lattice/collide.h"
+#include "lblight/lattice/d3q19.h"
+#include "lblight/lattice/omega.h"
+
+using namespace lblight;
+using d3q19::kQ;
+
+TEST_CASE("D3Q19 table: order, opposites and weights", "[lattice]") {
+  REQUIRE(d3q19::cx(1) == 1);
+  REQUIRE(d3q19::cy(4) == -1);
+  REQUIRE(d3q19::cz(13) == -1);
+  REQUIRE(d3q19::cx(14) == -1);
+  REQUIRE(d3q19::cz(18) == 1);
+  double w = 0;
+  for (int m = 0; m < kQ; ++m) {
+    const int o = d3q19::opposite(m);
+    CHECK(d3q19::cx(o) == -d3q19::cx(m));
+    CHECK(d3q19::cy(o) == -d3q19::cy(m));
+    CHECK(d3q19::cz(o) == -d3q19::cz(m));
+    w += d3q19::weight(m);
+    CHECK(d3q19::length_sq(m) == (m == 0 ? 0 : (m <= 6 ? 1 : 2)));
+  }
+  CHECK(w == Approx(1.0));
+}
+
+TEST_CASE("Omega column sums vanish for every g (energy conservation)", "[omega]") {
+  for (double g : {-1.0, -0.9, 0.0, 0.5, 0.9, 1.0}) {
+    for (OpticalParams p : {OpticalParams{0.008, 0.792, g}, OpticalParams{0.109, 0.891, g}, OpticalParams{0.0, 1.3, g}}) {
+      const OmegaMatrix om = build_omega(p);
+      for (int j = 0; j < kQ; ++j) {
+        double sum = 0;
+        for (int i = 0; i < kQ; ++i) sum += om[i * kQ + j];
+        INFO("g = " << g << ", column " << j);
+        CHECK(std::fabs(sum) < 1e-14);
+      }
+    }
+  }
+}
+
+TEST_CASE("Normalised phase function sums to one with the lattice weights", "[omega]") {
+  for (double g : {-1.0, -0.999, -0.5, 0.0, 0.3, 0.999, 1.0})
+    for (int j = 1; j < kQ; ++j) {
+      double s = 0;
+      for (int i = 1; i < kQ; ++i) s += d3q19::weight(i) * normalized_phase(g, i, j);
+      CHECK(s == Approx(1.0).epsilon(1e-13));
+    }
+}
+
+TEST_CASE("Isotropic null vector of 000 sec. 7: Omega v = 0", "[omega]") {
+  for (double sa : {0.0, 0.008, 0.109, 0.5})
+    for (double ss : {0.3, 0.792, 0.9}) {
+      const OmegaMatrix om = build_omega({sa, ss, 0.0});
+      double v[kQ];
+      v[0] = sa;
+      for (int m = 1; m < kQ; ++m) v[m] = d3q19::weight(m);
+      for (int i = 0; i < kQ; ++i) {
+        double r = 0;
+        for (int j = 0; j < kQ; ++j) r += om[i * kQ + j] * v[j];
+        CHECK(std::fabs(r) < 1e-15);
+      }
+    }
+}
+
+TEST_CASE("Null vector fails for a non-null vector (the test can fail)", "[omega]") {
+  const OmegaMatrix om = build_omega({0.1, 0.8, 0.0});
+  double r = 0;
+  for (int j = 0; j < kQ; ++j) r += om[1 * kQ + j] * (j == 1 ? 1.0 : 0.0);
+  CHECK(std::fabs(r) > 0.1);
+}
+
+TEST_CASE("|g| = 1 is the limit of eq. (9), never 0/0", "[omega]") {
+  for (double sign : {1.0, -1.0}) {
+    const OmegaMatrix exact = build_omega({0.05, 0.9, sign});
+    const OmegaMatrix near = build_omega({0.05, 0.9, sign * (1.0 - 1e-9)});
+    for (std::size_t e = 0; e < exact.size(); ++e) {
+      REQUIRE(std::isfinite(exact[e]));
+      CHECK(exact[e] == Approx(near[e]).margin(1e-6));
+    }
+  }
+  // g = 1, sigma_a = 0: Omega is zero on moving directions, so collision is the identity.
+  const OmegaMatrix pass = build_omega({0.0, 0.7, 1.0});
+  for (int i = 1; i < kQ; ++i)
+    for (int j = 1; j < kQ; ++j) CHECK(pass[i * kQ + j] == 0.0);
+}
+
+TEST_CASE("Reduced even/odd operator equals the dense product", "[omega]") {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 2.0);
+  for (double g : {-1.0, -0.75, 0.0, 0.103, 0.9, 1.0}) {
+    const OmegaMatrix om = build_omega({0.109, 0.891, g});
+    const CollisionOp<double> op = reduce_omega(om);
+    for (int trial = 0; trial < 20; ++trial) {
+      double f[kQ], f_copy[kQ];
+      for (int m = 0; m < kQ; ++m) f[m] = f_copy[m] = u(rng);
+      const double rho = 0.7;
+      double post[kQ];
+      collide_node(op, 1.0, rho, f, [&](int m, double v) { post[m] = v; });
+      for (int m = 0; m < kQ; ++m) {
+        double s = 0;
+        for (int n = 0; n < kQ; ++n) s += om[m * kQ + n] * f_copy[n];
+        CHECK(post[m] == Approx(f_copy[m] + rho * s).margin(1e-13));
+      }
+    }
+  }
+}
+
+TEST_CASE("Reduction rejects a matrix without central symmetry", "[omega]") {
+  OmegaMatrix om = build_omega({0.1, 0.8, 0.3});
+  om[1 * kQ + 3] += 0.01;
+  CHECK_THROWS_AS(reduce_omega(om), std::invalid_argument);
+}
+
+TEST_CASE("Diffusion coefficient of 000 eq. (4)", "[omega]") {
+  CHECK(diffusion_coefficient({0.008, 0.792, 0}) == Approx((2.0 / 0.8 - 1.0) / (4.0 * 1.008)));
+  CHECK(diffusion_coefficient({0.5, 1.5, 0}) == Approx(0.0));
+  CHECK(diffusion_coefficient({0.5, 1.6, 0}) < 0.0);
+}

@@ -1,0 +1,149 @@
+// Scene file v1: what parses, and how bad input is named.
+#include <catch2/catch.hpp>
+
+#include "lblight/core/error.h"
+#include "lblight/scene/load_model.h"
+#include "lblight/scene/scene.h"
+#include "lblight/solve/plan.h"
+
+using namespace lblight;
+
+namespace {
+const char* kMinimal = R"({
+  "version": 1,
+  "models": [{"name": "c", "density": {"type": "procedural", "shape": "cloud", "resolution": 12}, "material": "cloud"}]
+})";
+
+// Parses `text` and returns the error's JSON path, or "" when it parses.
+std::string error_path(const std::string& text) {
+  try {
+    parse_scene(text, "scene.json");
+  } catch (const Error& e) {
+    CHECK(e.category() == ErrorCategory::InvalidInput);
+    CHECK(e.where().file == "scene.json");
+    return e.where().json_path;
+  }
+  return "";
+}
+
+std::string with_model_field(const std::string& field) {
+  return std::string(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural"}, )") + field + "}]}";
+}
+}  // namespace
+
+TEST_CASE("A minimal scene parses with documented defaults", "[scene]") {
+  const Scene s = parse_scene(kMinimal, "dir/scene.json");
+  REQUIRE(s.models.size() == 1);
+  CHECK(s.name == "scene");
+  CHECK(s.dir == "dir");
+  CHECK(s.models[0].margin == 1);
+  CHECK(s.models[0].material.name == "cloud");
+  CHECK(s.models[0].wood_material.channel[0].g == -1.0);
+  CHECK_FALSE(s.models[0].wood_material.absorbs);
+  CHECK(s.lighting.mode == LightingMode::Base);
+  CHECK(s.lighting.solutions.size() == 19);
+  CHECK(s.solver.mode == IterationMode::Auto);
+  CHECK(s.solver.tolerance == 1e-4);
+  CHECK(s.hash.rfind("fnv1a64:", 0) == 0);
+}
+
+TEST_CASE("Material objects override presets per channel", "[scene]") {
+  const Scene s = parse_scene(with_model_field(R"("material": {"preset": "leaf", "g": [0.1, 0.2, 0.3], "absorb": false})"),
+                              "s.json");
+  CHECK(s.models[0].material.channel[2].g == 0.3);
+  CHECK(s.models[0].material.channel[0].sigma_a == 0.109);
+  CHECK_FALSE(s.models[0].material.absorbs);
+}
+
+TEST_CASE("Every bad field is named by its JSON path", "[scene]") {
+  CHECK(error_path("{") == "");  // not JSON: file only
+  CHECK(error_path(R"({"version": 2, "models": []})") == "/version");
+  CHECK(error_path(R"({"version": 1, "models": []})") == "/models");
+  CHECK(error_path(R"({"version": 1, "model": []})") == "/model");
+  CHECK(error_path(with_model_field(R"("material": {"sigma_a": -0.1, "sigma_s": 0.5, "g": 0})")) ==
+        "/models/0/material/sigma_a");
+  CHECK(error_path(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": [0.5, -1, 0.5], "g": 0})")) ==
+        "/models/0/material/sigma_s/1");
+  CHECK(error_path(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": 1.5})")) ==
+        "/models/0/material/g");
+  // JSON has no Inf: an overflowing number is rejected by the parser, naming the text
+  CHECK(error_path(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": 1e999})")) == "");
+  CHECK(error_path(with_model_field(R"("material": "granite")")) == "/models/0/material");
+  CHECK(error_path(with_model_field(R"("material": "cloud", "margin": 0)")) == "/models/0/margin");
+  CHECK(error_path(with_model_field(R"("material": "cloud", "colour": 1)")) == "/models/0/colour");
+  CHECK(error_path(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural", "resolution": 2},
+      "material": "cloud"}]})") == "/models/0/density/resolution");
+  CHECK(error_path(R"({"version": 1, "models": [{"name": "a/b", "density": {"type": "procedural"},
+      "material": "cloud"}]})") == "/models/0/name");
+  CHECK(error_path(std::string(kMinimal).insert(1, R"("solver": {"iterations": "forever"},)")) ==
+        "/solver/iterations");
+  CHECK(error_path(std::string(kMinimal).insert(1, R"("lighting": {"mode": "base", "solutions": "0,19"},)")) ==
+        "/lighting/solutions");
+}
+
+TEST_CASE("Error messages name the value and what is allowed", "[scene]") {
+  try {
+    parse_scene(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": -1.25})"), "x.json");
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    CHECK(what.find("x.json") != std::string::npos);
+    CHECK(what.find("-1.25") != std::string::npos);
+    CHECK(what.find("-1 <= g <= 1") != std::string::npos);
+  }
+}
+
+TEST_CASE("Solution lists: all, indices and ranges", "[scene]") {
+  CHECK(parse_solution_list("all", {}).size() == 19);
+  CHECK(parse_solution_list("0,1,5-7", {}) == std::vector<int>{0, 1, 5, 6, 7});
+  CHECK(parse_solution_list("[3, 3, 2]", {}) == std::vector<int>{2, 3});
+  CHECK_THROWS_AS(parse_solution_list("7-5", {}), Error);
+  CHECK_THROWS_AS(parse_solution_list("x", {}), Error);
+  CHECK_THROWS_AS(parse_solution_list("-1", {}), Error);
+}
+
+TEST_CASE("Static lighting: sun from angles or a vector", "[scene]") {
+  const Scene s = parse_scene(std::string(kMinimal).insert(1, R"("lighting": {"mode": "static",
+      "sun": {"direction": [0, 0, 2]}, "intensity": 2, "ambient": 0.5},)"), "s.json");
+  CHECK(s.lighting.mode == LightingMode::Static);
+  CHECK(s.lighting.toward_sun.z == Approx(1.0));
+  CHECK(s.lighting.intensity == 2.0);
+}
+
+TEST_CASE("Grid rules: density after scale and rho * sigma_t < 2", "[scene][validate]") {
+  // density_scale pushes the procedural cloud's core above 1
+  Scene s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
+      "resolution": 10, "density_scale": 1.5}, "material": "cloud"}]})", "s.json");
+  try {
+    make_plan(s);
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    CHECK(e.category() == ErrorCategory::InvalidInput);
+    CHECK(std::string(e.what()).find("after density_scale") != std::string::npos);
+    CHECK_FALSE(e.where().voxel.empty());
+  }
+  s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural", "resolution": 10},
+      "material": {"sigma_a": 0.5, "sigma_s": [1.0, 1.6, 1.0], "g": 0}}]})", "s.json");
+  try {
+    make_plan(s);
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    CHECK(what.find("channel green") != std::string::npos);
+    CHECK(what.find("rho * sigma_t < 2") != std::string::npos);
+    CHECK(e.where().json_path == "/models/0/material");
+  }
+}
+
+TEST_CASE("Procedural sources are deterministic and in range", "[scene]") {
+  const Scene s = parse_scene(R"({"version": 1, "models": [
+      {"name": "p", "density": {"type": "procedural", "shape": "plant", "resolution": 24, "seed": 4},
+       "material": "leaf", "wood_material": "bark"}]})", "s.json");
+  const ModelGrid a = load_model_grid(s.models[0], s);
+  const ModelGrid b = load_model_grid(s.models[0], s);
+  CHECK(a.density == b.density);
+  CHECK(a.material == b.material);
+  CHECK(a.wood_nodes() > 0);
+  CHECK(a.occupied_nodes() > a.wood_nodes());
+  for (float d : a.density) REQUIRE((d >= 0.0f && d <= 1.0f));
+}

@@ -1,0 +1,197 @@
+#include "tests/test_support.h"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "backends/openmp/openmp_backend.h"
+#include "lblight/lattice/d3q19.h"
+
+namespace lblight::test {
+
+using d3q19::kQ;
+
+ReferenceLattice::ReferenceLattice(const LatticeGeometry& g, const std::vector<OmegaMatrix>& omega,
+                                   const std::vector<bool>& absorbs, const std::array<double, 19>& boundary)
+    : g_(g), omega_(omega), absorbs_(absorbs), f_(kQ * g.dims.count(), 0.0) {
+  const Dims& d = g_.dims;
+  for (int z = 0; z < d.nz; ++z)
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x)
+        if (d.is_boundary(x, y, z))
+          for (int m = 0; m < kQ; ++m) f_[m * d.count() + d.index(x, y, z)] = boundary[m];
+}
+
+void ReferenceLattice::step(int n) {
+  const Dims& d = g_.dims;
+  const std::size_t count = d.count();
+  for (int t = 0; t < n; ++t) {
+    std::vector<double> next = f_;  // boundary nodes keep their values
+    for (int z = 0; z < d.nz; ++z)
+      for (int y = 0; y < d.ny; ++y)
+        for (int x = 0; x < d.nx; ++x) {
+          const std::size_t p = d.index(x, y, z);
+          const int mat = g_.material[p];
+          double ft[kQ];
+          for (int m = 0; m < kQ; ++m) ft[m] = f_[m * count + p];
+          if (absorbs_[static_cast<std::size_t>(mat)]) ft[0] = 0.0;
+          const OmegaMatrix& om = omega_[static_cast<std::size_t>(mat)];
+          for (int m = 0; m < kQ; ++m) {
+            double s = 0;
+            for (int k = 0; k < kQ; ++k) s += om[m * kQ + k] * ft[k];
+            const double post = ft[m] + g_.density[p] * s;
+            const int qx = x + d3q19::cx(m), qy = y + d3q19::cy(m), qz = z + d3q19::cz(m);
+            if (qx <= 0 || qy <= 0 || qz <= 0 || qx >= d.nx - 1 || qy >= d.ny - 1 || qz >= d.nz - 1) continue;
+            next[m * count + d.index(qx, qy, qz)] = post;
+          }
+        }
+    f_.swap(next);
+  }
+}
+
+std::vector<double> ReferenceLattice::totals() const {
+  const std::size_t count = g_.dims.count();
+  std::vector<double> t(count, 0.0);
+  for (int m = 0; m < kQ; ++m)
+    for (std::size_t i = 0; i < count; ++i) t[i] += f_[m * count + i];
+  return t;
+}
+
+LatticeGeometry uniform_lattice(Dims d, float rho) {
+  LatticeGeometry g;
+  g.dims = d;
+  g.density.assign(d.count(), 0.0f);
+  g.material.assign(d.count(), 0);
+  for (int z = 1; z < d.nz - 1; ++z)
+    for (int y = 1; y < d.ny - 1; ++y)
+      for (int x = 1; x < d.nx - 1; ++x) g.density[d.index(x, y, z)] = rho;
+  return g;
+}
+
+LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsigned seed) {
+  LatticeGeometry g = uniform_lattice(d, 0.0f);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  bool wood = false;
+  for (int z = 1; z < d.nz - 1; ++z)
+    for (int y = 1; y < d.ny - 1; ++y)
+      for (int x = 1; x < d.nx - 1; ++x) {
+        const std::size_t i = d.index(x, y, z);
+        const float r = u(rng);
+        g.density[i] = r < 0.2f ? 0.0f : max_rho * u(rng);
+        if (u(rng) < wood_fraction && g.density[i] > 0) {
+          g.material[i] = 1;
+          wood = true;
+        }
+      }
+  g.material_count = wood ? 2 : 1;
+  return g;
+}
+
+ChannelMaterials channel(const OpticalParams& medium, bool absorbs, const OpticalParams& wood, bool wood_absorbs) {
+  ChannelMaterials ch;
+  ch.omega[0] = build_omega(medium);
+  ch.absorbs[0] = absorbs;
+  ch.omega[1] = build_omega(wood);
+  ch.absorbs[1] = wood_absorbs;
+  return ch;
+}
+
+SystemSpec system_for(int channel, const std::array<double, 19>& boundary) {
+  SystemSpec s;
+  s.channel = channel;
+  s.boundary = boundary;
+  return s;
+}
+
+std::unique_ptr<Backend> cpu_backend(int threads) { return make_openmp_backend(threads); }
+
+std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
+                                const SystemSpec& sys, int steps, Precision p) {
+  SolverOptions so;
+  so.precision = p;
+  so.max_systems = 1;
+  auto solver = backend.create(g, ch, so);
+  solver->reset({sys});
+  solver->step(steps);
+  std::vector<Residual> r;
+  solver->measure(r);
+  std::vector<float> out(g.dims.count());
+  solver->read_totals(0, out.data());
+  return out;
+}
+
+std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
+                                     const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps) {
+  SolverOptions so;
+  so.precision = Precision::Float64;
+  so.max_systems = 1;
+  auto solver = backend.create(g, ch, so);
+  solver->reset({sys});
+  solver->step(steps);
+  std::vector<double> f;
+  solver->read_state(0, f);
+  const std::size_t n = g.dims.count();
+  std::vector<double> t(n, 0.0);
+  for (int m = 0; m < kQ; ++m)
+    for (std::size_t i = 0; i < n; ++i) t[i] += f[m * n + i];
+  return t;
+}
+
+double max_relative_difference(const std::vector<double>& a, const std::vector<double>& b, double floor) {
+  double worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    worst = std::max(worst, std::fabs(a[i] - b[i]) / std::max(std::fabs(a[i]), floor));
+  return worst;
+}
+
+TempDir::TempDir() {
+  std::string tmpl = (std::filesystem::temp_directory_path() / "lblight-test-XXXXXX").string();
+  if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
+  path_ = tmpl;
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
+}
+
+CliResult run_cli(const std::string& args, const std::filesystem::path& cwd) {
+  TempDir io;
+  const std::string cmd = (cwd.empty() ? "" : "cd '" + cwd.string() + "' && ") + std::string("'") + LBLIGHT_EXE +
+                          "' " + args + " >'" + (io / "out").string() + "' 2>'" + (io / "err").string() + "'";
+  const int status = std::system(cmd.c_str());
+  CliResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = read_text(io / "out");
+  r.err = read_text(io / "err");
+  return r;
+}
+
+void write_text(const std::filesystem::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+}
+
+std::string read_text(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+double max_relative_difference(const std::vector<double>& a, const std::vector<float>& b, double floor) {
+  double worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double denom = std::max(std::fabs(a[i]), floor);
+    worst = std::max(worst, std::fabs(a[i] - static_cast<double>(b[i])) / denom);
+  }
+  return worst;
+}
+
+}  // namespace lblight::test

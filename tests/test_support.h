@@ -1,0 +1,75 @@
+// Helpers shared by the tests: a literal reference implementation of the spec's update rule,
+// lattice builders, temporary folders and running the CLI.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lblight/backend/backend.h"
+#include "lblight/lattice/omega.h"
+
+namespace lblight::test {
+
+// Spec sec. 3, written as plainly as possible: dense Omega in double, every node (boundary
+// included) collides and pushes, only interior targets are written, boundary values fixed.
+class ReferenceLattice {
+ public:
+  ReferenceLattice(const LatticeGeometry& g, const std::vector<OmegaMatrix>& omega_per_material,
+                   const std::vector<bool>& absorbs, const std::array<double, 19>& boundary);
+  void step(int n = 1);
+  std::vector<double> totals() const;
+  std::vector<double>& state() { return f_; }
+
+ private:
+  LatticeGeometry g_;
+  std::vector<OmegaMatrix> omega_;
+  std::vector<bool> absorbs_;
+  std::vector<double> f_;
+};
+
+LatticeGeometry uniform_lattice(Dims d, float rho);  // boundary layer empty
+// Random densities in [0, max_rho] on the interior, wood (material 1) where `wood_fraction` hits.
+LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsigned seed);
+
+ChannelMaterials channel(const OpticalParams& medium, bool absorbs,
+                         const OpticalParams& wood = {0.1, 0.9, -1.0}, bool wood_absorbs = false);
+SystemSpec system_for(int channel, const std::array<double, 19>& boundary);
+
+std::unique_ptr<Backend> cpu_backend(int threads = 0);
+
+// Runs `steps` steps and returns the totals of one system (after a measure()).
+std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
+                                const SystemSpec& sys, int steps, Precision p = Precision::Float32);
+
+// The same in double from the raw state (for float64 runs, whose totals read_totals rounds).
+std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
+                                     const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps);
+double max_relative_difference(const std::vector<double>& a, const std::vector<double>& b, double floor = 1e-30);
+
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+struct CliResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+// Runs the lblight binary with `args` (a shell-quoted string) in `cwd`.
+CliResult run_cli(const std::string& args, const std::filesystem::path& cwd = {});
+
+void write_text(const std::filesystem::path& file, const std::string& text);
+std::string read_text(const std::filesystem::path& file);
+
+double max_relative_difference(const std::vector<double>& a, const std::vector<float>& b, double floor = 1e-30);
+
+}  // namespace lblight::test
