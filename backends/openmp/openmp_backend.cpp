@@ -394,6 +394,7 @@ class OpenMpBackend final : public Backend {
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return host_available_memory_bytes(); }
+  int preferred_batch(const Dims&, Precision, int total_systems) const override { return std::min(total_systems, 3); }
 
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {

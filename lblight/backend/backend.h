@@ -94,6 +94,9 @@ class Backend {
   virtual std::size_t bytes_per_system(const Dims& dims, Precision p) const = 0;
   virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;
   virtual std::size_t available_bytes() const = 0;
+  // Systems a batch should hold when memory allows: the CPU gains nothing from more than one
+  // solution at a time; a GPU fills better with many systems per launch on small lattices.
+  virtual int preferred_batch(const Dims& dims, Precision p, int total_systems) const = 0;
   virtual std::unique_ptr<LatticeSolver> create(const LatticeGeometry& geometry,
                                                 const std::vector<ChannelMaterials>& channels,
                                                 const SolverOptions& options) const = 0;

@@ -9,7 +9,9 @@
 #define LBL_GPU_COMPILER 0
 #endif
 
-#if defined(_MSC_VER)
+#if LBL_GPU_COMPILER
+#define LBL_FORCEINLINE __forceinline__
+#elif defined(_MSC_VER)
 #define LBL_FORCEINLINE __forceinline
 #else
 #define LBL_FORCEINLINE inline __attribute__((always_inline))

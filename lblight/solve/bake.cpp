@@ -27,8 +27,11 @@ int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOption
   const std::size_t fixed = backend.bytes_per_lattice(d);
   const std::size_t avail = backend.available_bytes();
   const int channels = static_cast<int>(mp.channels.size());
-  int want = opt.max_systems > 0 ? opt.max_systems : channels;
-  want = std::max(1, std::min<int>(want, static_cast<int>(mp.systems())));
+  const int total = static_cast<int>(mp.systems());
+  int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, opt.precision, total);
+  want = std::max(1, std::min(want, total));
+  // whole solutions per batch: a multiple of the channel count where possible
+  if (want > channels) want -= want % channels;
   if (avail > 0) {
     // keep a tenth of the free memory for everything else
     const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(fixed);

@@ -1,0 +1,466 @@
+// CUDA backend: the thread-per-node loop around backends/cuda/lb_device.h (and so around
+// lattice/collide.h). Written against gpu_runtime.h, so the same file compiles with hipcc.
+//
+// Choices (000 sec. 3.1, 001 sec. 5.1, then further):
+// - one thread per interior node, x along threadIdx.x: every direction array is read and
+//   written coalesced (structure of arrays, x fastest);
+// - the 19 values stay in registers; Omega (reduced form) lives in constant memory;
+// - no index table: interior nodes push to all 19 neighbours, boundary inflow is written once;
+// - several systems (colour channels and base solutions) per launch share the density and
+//   material loads and the launch overhead on small lattices;
+// - convergence sums are reduced on the device in a fixed order (deterministic), and only
+//   seven numbers per system come back per check;
+// - float16 storage with float32 arithmetic as an option.
+#include "backends/cuda/cuda_backend.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <type_traits>
+#include <vector>
+
+#include "backends/cuda/gpu_runtime.h"
+#include "backends/cuda/lb_device.h"
+#include "lblight/core/error.h"
+#include "lblight/lattice/collision_op.h"
+
+namespace lblight {
+namespace gpu {
+
+template <>
+struct Storage<gpu_half> {
+  __device__ static float load(gpu_half v) { return __half2float(v); }
+  __device__ static gpu_half store(float v) { return __float2half_rn(v); }
+};
+
+// Batch tables in constant memory (one solver owns them at a time; see Solver::bind).
+__constant__ CollisionOp<float> c_ops[kMaxChannels][kMaxMaterialsGpu];
+__constant__ unsigned c_absorb[kMaxChannels];
+__constant__ int c_channel[kMaxBatch];
+__constant__ float c_boundary[kMaxBatch][19];
+
+struct DeviceTables {
+  __device__ int channel(int s) const { return c_channel[s]; }
+  __device__ unsigned absorb_bits(int c) const { return c_absorb[c]; }
+  __device__ float boundary(int s, int m) const { return c_boundary[s][m]; }
+  __device__ const CollisionOp<float>& op(int c, int k) const { return c_ops[c][k]; }
+};
+
+constexpr int kStepBlock = 128;
+constexpr int kReduceBlock = 256;
+
+template <typename T>
+__global__ void step_kernel(BatchArgs<T> a) {
+  const int x = 1 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  if (x >= a.d.nx - 1) return;
+  step_node(a, DeviceTables{}, x, 1 + static_cast<int>(blockIdx.y), 1 + static_cast<int>(blockIdx.z));
+}
+
+template <typename T>
+__global__ void inflow_kernel(BatchArgs<T> a, int level) {
+  const int x = 1 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  if (x >= a.d.nx - 1) return;
+  const int y = 1 + static_cast<int>(blockIdx.y), z = 1 + static_cast<int>(blockIdx.z);
+  if (x > 1 && x < a.d.nx - 2 && y > 1 && y < a.d.ny - 2 && z > 1 && z < a.d.nz - 2) return;
+  inflow_node(a, DeviceTables{}, level, x, y, z);
+}
+
+// Totals at t = 0: interior 0, boundary nodes the sum of their fixed values.
+__global__ void init_totals_kernel(float* totals, Dims d, int systems) {
+  const long long n = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  const long long count = static_cast<long long>(d.count());
+  if (n >= count) return;
+  const int x = static_cast<int>(n % d.nx), y = static_cast<int>((n / d.nx) % d.ny),
+            z = static_cast<int>(n / (static_cast<long long>(d.nx) * d.ny));
+  const bool boundary = d.is_boundary(x, y, z);
+  for (int s = 0; s < systems; ++s) {
+    float t = 0.0f;
+    if (boundary)
+      for (int m = 0; m < 19; ++m) t += c_boundary[s][m];
+    totals[s * count + n] = t;
+  }
+}
+
+// Block-level partial sums per system, written to partial[(block * systems + s) * slots].
+template <typename T>
+__global__ void measure_kernel(BatchArgs<T> a, double* partial) {
+  __shared__ double shared[kReduceSlots][kReduceBlock];
+  const long long interior = static_cast<long long>(a.d.nx - 2) * (a.d.ny - 2) * (a.d.nz - 2);
+  const long long n = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  for (int s = 0; s < a.systems; ++s) {
+    double acc[kReduceSlots] = {0, 0, 0, 0, 0, 0, 0};
+    if (n < interior) {
+      int x, y, z;
+      interior_coords(a.d, n, x, y, z);
+      accumulate(acc, measure_node(a, DeviceTables{}, s, x, y, z));
+    }
+    for (int k = 0; k < kReduceSlots; ++k) shared[k][threadIdx.x] = acc[k];
+    __syncthreads();
+    for (int width = kReduceBlock / 2; width > 0; width /= 2) {
+      if (static_cast<int>(threadIdx.x) < width) {
+        double other[kReduceSlots];
+        for (int k = 0; k < kReduceSlots; ++k) other[k] = shared[k][threadIdx.x + width];
+        double mine[kReduceSlots];
+        for (int k = 0; k < kReduceSlots; ++k) mine[k] = shared[k][threadIdx.x];
+        combine(mine, other);
+        for (int k = 0; k < kReduceSlots; ++k) shared[k][threadIdx.x] = mine[k];
+      }
+      __syncthreads();
+    }
+    if (threadIdx.x == 0)
+      for (int k = 0; k < kReduceSlots; ++k)
+        partial[(static_cast<long long>(blockIdx.x) * a.systems + s) * kReduceSlots + k] = shared[k][0];
+    __syncthreads();
+  }
+}
+
+// One block per system adds the partials in block order: the same sums on every run.
+__global__ void finish_reduce_kernel(const double* partial, int blocks, int systems, double* out) {
+  __shared__ double shared[kReduceSlots][kReduceBlock];
+  const int s = static_cast<int>(blockIdx.x);
+  double acc[kReduceSlots] = {0, 0, 0, 0, 0, 0, 0};
+  for (int b = static_cast<int>(threadIdx.x); b < blocks; b += kReduceBlock)
+    combine(acc, partial + (static_cast<long long>(b) * systems + s) * kReduceSlots);
+  for (int k = 0; k < kReduceSlots; ++k) shared[k][threadIdx.x] = acc[k];
+  __syncthreads();
+  for (int width = kReduceBlock / 2; width > 0; width /= 2) {
+    if (static_cast<int>(threadIdx.x) < width) {
+      double mine[kReduceSlots], other[kReduceSlots];
+      for (int k = 0; k < kReduceSlots; ++k) {
+        mine[k] = shared[k][threadIdx.x];
+        other[k] = shared[k][threadIdx.x + width];
+      }
+      combine(mine, other);
+      for (int k = 0; k < kReduceSlots; ++k) shared[k][threadIdx.x] = mine[k];
+    }
+    __syncthreads();
+  }
+  if (threadIdx.x == 0)
+    for (int k = 0; k < kReduceSlots; ++k) out[s * kReduceSlots + k] = shared[k][0];
+}
+
+// A device allocation that frees itself.
+template <typename T>
+class DeviceBuffer {
+ public:
+  DeviceBuffer() = default;
+  explicit DeviceBuffer(std::size_t count) { allocate(count); }
+  DeviceBuffer(const DeviceBuffer&) = delete;
+  DeviceBuffer& operator=(const DeviceBuffer&) = delete;
+  ~DeviceBuffer() { release(); }
+  void allocate(std::size_t count) {
+    release();
+    if (count == 0) return;
+    GPU_CHECK(gpuMalloc(reinterpret_cast<void**>(&ptr_), count * sizeof(T)));
+    count_ = count;
+  }
+  void release() {
+    if (ptr_) gpuFree(ptr_);
+    ptr_ = nullptr;
+    count_ = 0;
+  }
+  T* get() const { return ptr_; }
+  std::size_t size() const { return count_; }
+  std::size_t bytes() const { return count_ * sizeof(T); }
+
+ private:
+  T* ptr_ = nullptr;
+  std::size_t count_ = 0;
+};
+
+const void* g_bound_tables_owner = nullptr;  // the solver whose tables are in constant memory
+
+dim3 interior_grid(const Dims& d, int block) {
+  return dim3(static_cast<unsigned>((d.nx - 2 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
+              static_cast<unsigned>(d.nz - 2));
+}
+
+template <typename T>
+class Solver final : public LatticeSolver {
+ public:
+  Solver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity)
+      : d_(g.dims), capacity_(capacity) {
+    if (d_.nx < 3 || d_.ny < 3 || d_.nz < 3) throw_invalid("lattice must have at least 3 nodes per edge");
+    if (d_.ny - 2 > 65535 || d_.nz - 2 > 65535) throw_invalid("lattice too large for the CUDA launch grid");
+    if (static_cast<int>(channels.size()) > kMaxChannels || g.material_count > kMaxMaterialsGpu)
+      throw std::logic_error("cuda backend: too many channels or materials");
+    if (capacity_ < 1 || capacity_ > kMaxBatch) throw std::logic_error("cuda backend: batch capacity out of range");
+    for (std::size_t c = 0; c < channels.size(); ++c) {
+      for (int k = 0; k < g.material_count; ++k) ops_[c][k] = convert_op<float>(reduce_omega(channels[c].omega[k]));
+      unsigned bits = 0;
+      for (int k = 0; k < kMaxMaterials; ++k)
+        if (channels[c].absorbs[k]) bits |= 1u << k;
+      absorb_[c] = bits;
+    }
+    channel_count_ = static_cast<int>(channels.size());
+    count_ = d_.count();
+    stride_ = gpu_stride(d_);
+    density_.allocate(count_);
+    material_.allocate(count_);
+    GPU_CHECK(gpuMemcpy(density_.get(), g.density.data(), count_ * sizeof(float), gpuMemcpyHostToDevice));
+    GPU_CHECK(gpuMemcpy(material_.get(), g.material.data(), count_, gpuMemcpyHostToDevice));
+    state_.allocate(static_cast<std::size_t>(capacity_) * 2 * 19 * static_cast<std::size_t>(stride_));
+    totals_.allocate(static_cast<std::size_t>(capacity_) * count_);
+    const long long interior = static_cast<long long>(d_.interior_count());
+    reduce_blocks_ = static_cast<int>((interior + kReduceBlock - 1) / kReduceBlock);
+    partial_.allocate(static_cast<std::size_t>(reduce_blocks_) * capacity_ * kReduceSlots);
+    reduced_.allocate(static_cast<std::size_t>(capacity_) * kReduceSlots);
+  }
+
+  ~Solver() override {
+    if (g_bound_tables_owner == this) g_bound_tables_owner = nullptr;
+  }
+
+  int capacity() const override { return capacity_; }
+
+  void reset(const std::vector<SystemSpec>& batch) override {
+    if (static_cast<int>(batch.size()) > capacity_) throw std::logic_error("batch larger than solver capacity");
+    batch_ = batch;
+    ++batch_generation_;  // new tables for bind()
+    for (const SystemSpec& s : batch_)
+      if (s.channel < 0 || s.channel >= channel_count_) throw std::logic_error("system channel out of range");
+    bind();
+    level_ = 0;
+    GPU_CHECK(gpuMemset(state_.get(), 0, state_.bytes()));
+    const BatchArgs<T> a = args();
+    init_totals_kernel<<<static_cast<unsigned>((count_ + kReduceBlock - 1) / kReduceBlock), kReduceBlock>>>(
+        totals_.get(), d_, a.systems);
+    GPU_CHECK(gpuGetLastError());
+    inflow(1);  // what the boundary pushes arrives with the first step
+    inflow_pending_ = true;
+  }
+
+  void step(int steps) override {
+    bind();
+    for (int t = 0; t < steps; ++t) {
+      step_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(args());
+      GPU_CHECK(gpuGetLastError());
+      level_ = 1 - level_;
+      if (inflow_pending_) {
+        inflow(1 - level_);
+        inflow_pending_ = false;
+      }
+    }
+  }
+
+  void measure(std::vector<Residual>& out) override {
+    bind();
+    const BatchArgs<T> a = args();
+    measure_kernel<T><<<static_cast<unsigned>(reduce_blocks_), kReduceBlock>>>(a, partial_.get());
+    GPU_CHECK(gpuGetLastError());
+    finish_reduce_kernel<<<static_cast<unsigned>(a.systems), kReduceBlock>>>(partial_.get(), reduce_blocks_,
+                                                                            a.systems, reduced_.get());
+    GPU_CHECK(gpuGetLastError());
+    std::vector<double> host(static_cast<std::size_t>(a.systems) * kReduceSlots);
+    GPU_CHECK(gpuMemcpy(host.data(), reduced_.get(), host.size() * sizeof(double), gpuMemcpyDeviceToHost));
+    out.assign(static_cast<std::size_t>(a.systems), Residual{});
+    for (int s = 0; s < a.systems; ++s) {
+      const double* v = host.data() + static_cast<std::size_t>(s) * kReduceSlots;
+      Residual& r = out[static_cast<std::size_t>(s)];
+      r.diff_sq = v[kDiffSq];
+      r.total_sq = v[kTotalSq];
+      r.deficit_sq = v[kDeficitSq];
+      r.diff_max = v[kDiffMax];
+      r.total_max = v[kTotalMax];
+      r.deficit_max = v[kDeficitMax];
+      r.finite = v[kNonFinite] == 0.0 && std::isfinite(v[kTotalSq]);
+    }
+  }
+
+  void read_totals(int system, float* out) const override {
+    GPU_CHECK(gpuMemcpy(out, totals_.get() + static_cast<std::size_t>(system) * count_, count_ * sizeof(float),
+                        gpuMemcpyDeviceToHost));
+  }
+
+  void read_state(int system, std::vector<double>& f) const override {
+    std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
+    GPU_CHECK(gpuMemcpy(raw.data(), level_ptr(system, level_), raw.size() * sizeof(T), gpuMemcpyDeviceToHost));
+    const SystemSpec& spec = batch_.at(static_cast<std::size_t>(system));
+    f.assign(19 * count_, 0.0);
+    for (int z = 0; z < d_.nz; ++z)
+      for (int y = 0; y < d_.ny; ++y)
+        for (int x = 0; x < d_.nx; ++x) {
+          const std::size_t i = d_.index(x, y, z);
+          const bool boundary = d_.is_boundary(x, y, z);
+          for (int m = 0; m < 19; ++m)
+            f[m * count_ + i] = boundary ? spec.boundary[m] : to_double(raw[m * static_cast<std::size_t>(stride_) + i]);
+        }
+  }
+
+  void write_state(int system, const std::vector<double>& f) override {
+    if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
+    std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
+    for (int m = 0; m < 19; ++m)
+      for (std::size_t i = 0; i < count_; ++i) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
+    GPU_CHECK(gpuMemcpy(level_ptr(system, level_), raw.data(), raw.size() * sizeof(T), gpuMemcpyHostToDevice));
+    bind();
+    inflow(0);
+    inflow(1);
+    inflow_pending_ = false;
+  }
+
+  std::size_t bytes_in_use() const override {
+    return density_.bytes() + material_.bytes() + state_.bytes() + totals_.bytes() + partial_.bytes() +
+           reduced_.bytes();
+  }
+
+ private:
+  static double to_double(float v) { return v; }
+  static double to_double(gpu_half v) { return static_cast<double>(__half2float(v)); }
+  static T from_double(double v) {
+    if constexpr (std::is_same_v<T, float>) return static_cast<float>(v);
+    else return __float2half_rn(static_cast<float>(v));
+  }
+
+  T* level_ptr(int system, int level) const {
+    return state_.get() + static_cast<std::size_t>(system) * 2 * 19 * static_cast<std::size_t>(stride_) +
+           static_cast<std::size_t>(level) * 19 * static_cast<std::size_t>(stride_);
+  }
+
+  BatchArgs<T> args() const {
+    BatchArgs<T> a;
+    a.d = d_;
+    a.stride = stride_;
+    a.level_stride = 19 * stride_;
+    a.system_stride = 2 * 19 * stride_;
+    a.systems = static_cast<int>(batch_.size());
+    a.level = level_;
+    a.density = density_.get();
+    a.material = material_.get();
+    a.state = state_.get();
+    a.totals = totals_.get();
+    return a;
+  }
+
+  void inflow(int level) {
+    inflow_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(args(), level);
+    GPU_CHECK(gpuGetLastError());
+  }
+
+  // Puts this solver's tables into constant memory unless they are there already.
+  void bind() {
+    if (g_bound_tables_owner == this && bound_batch_ == batch_generation_) return;
+    GPU_CHECK(gpuMemcpyToSymbol(c_ops, ops_, sizeof(ops_)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_absorb, absorb_, sizeof(absorb_)));
+    int channel[kMaxBatch] = {};
+    float boundary[kMaxBatch][19] = {};
+    for (std::size_t s = 0; s < batch_.size(); ++s) {
+      channel[s] = batch_[s].channel;
+      for (int m = 0; m < 19; ++m) boundary[s][m] = static_cast<float>(batch_[s].boundary[m]);
+    }
+    GPU_CHECK(gpuMemcpyToSymbol(c_channel, channel, sizeof(channel)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_boundary, boundary, sizeof(boundary)));
+    g_bound_tables_owner = this;
+    bound_batch_ = batch_generation_;
+  }
+
+  Dims d_;
+  int capacity_;
+  std::size_t count_ = 0;
+  long long stride_ = 0;
+  int channel_count_ = 0;
+  CollisionOp<float> ops_[kMaxChannels][kMaxMaterialsGpu] = {};
+  unsigned absorb_[kMaxChannels] = {};
+  DeviceBuffer<float> density_;
+  DeviceBuffer<std::uint8_t> material_;
+  DeviceBuffer<T> state_;
+  DeviceBuffer<float> totals_;
+  DeviceBuffer<double> partial_, reduced_;
+  int reduce_blocks_ = 0;
+  std::vector<SystemSpec> batch_;
+  int level_ = 0;
+  bool inflow_pending_ = false;
+  long long batch_generation_ = 0, bound_batch_ = -1;
+};
+
+class CudaBackend final : public Backend {
+ public:
+  explicit CudaBackend(int device) : device_(device) {
+    int count = 0;
+    GPU_CHECK(gpuGetDeviceCount(&count));
+    if (device < 0 || device >= count)
+      throw Error(ErrorCategory::Unavailable,
+                  "GPU " + std::to_string(device) + " does not exist (" + std::to_string(count) + " present)");
+    GPU_CHECK(gpuSetDevice(device));
+    GPU_CHECK(gpuGetDeviceProperties(&props_, device));
+  }
+  std::string name() const override { return "cuda"; }
+  std::string description() const override {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%s %s, device %d (%d SMs, %.1f GiB)",
+#if defined(__HIPCC__)
+                  "HIP",
+#else
+                  "CUDA",
+#endif
+                  props_.name, device_, props_.multiProcessorCount,
+                  static_cast<double>(props_.totalGlobalMem) / (1024.0 * 1024.0 * 1024.0));
+    return buf;
+  }
+  bool supports(Precision p) const override { return p != Precision::Float64; }
+  std::size_t bytes_per_system(const Dims& d, Precision p) const override {
+    const std::size_t v = p == Precision::Float16 ? 2 : 4;
+    return 2 * 19 * static_cast<std::size_t>(gpu_stride(d)) * v + d.count() * sizeof(float) +
+           ((d.interior_count() + kReduceBlock - 1) / kReduceBlock + 1) * kReduceSlots * sizeof(double);
+  }
+  std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
+  std::size_t available_bytes() const override {
+    std::size_t free_bytes = 0, total = 0;
+    GPU_CHECK(gpuSetDevice(device_));
+    GPU_CHECK(gpuMemGetInfo(&free_bytes, &total));
+    return free_bytes;
+  }
+  int preferred_batch(const Dims&, Precision, int total_systems) const override {
+    return std::min(total_systems, kMaxBatch);
+  }
+  std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
+                                        const SolverOptions& options) const override {
+    GPU_CHECK(gpuSetDevice(device_));
+    const int capacity = std::clamp(options.max_systems > 0 ? options.max_systems : 1, 1, kMaxBatch);
+    switch (options.precision) {
+      case Precision::Float32: return std::make_unique<Solver<float>>(g, channels, capacity);
+      case Precision::Float16: return std::make_unique<Solver<gpu_half>>(g, channels, capacity);
+      default:
+        throw Error(ErrorCategory::Unavailable, "the cuda backend stores float32 or float16, not float64");
+    }
+  }
+  double measure_copy_bandwidth(std::size_t bytes) const override {
+    GPU_CHECK(gpuSetDevice(device_));
+    DeviceBuffer<char> a(bytes), b(bytes);
+    GPU_CHECK(gpuMemset(a.get(), 1, bytes));
+    gpuEvent_t start, stop;
+    GPU_CHECK(gpuEventCreate(&start));
+    GPU_CHECK(gpuEventCreate(&stop));
+    double best = 0;
+    for (int rep = 0; rep < 6; ++rep) {
+      GPU_CHECK(gpuEventRecord(start, 0));
+      GPU_CHECK(gpuMemcpy(b.get(), a.get(), bytes, gpuMemcpyDeviceToDevice));
+      GPU_CHECK(gpuEventRecord(stop, 0));
+      GPU_CHECK(gpuEventSynchronize(stop));
+      float ms = 0;
+      GPU_CHECK(gpuEventElapsedTime(&ms, start, stop));
+      if (rep > 0) best = std::max(best, 2.0 * static_cast<double>(bytes) / (ms * 1e-3));
+    }
+    gpuEventDestroy(start);
+    gpuEventDestroy(stop);
+    return best;
+  }
+
+ private:
+  int device_;
+  gpuDeviceProp props_{};
+};
+
+}  // namespace gpu
+
+std::string cuda_unavailable_reason() {
+  int count = 0;
+  const gpuError_t err = gpuGetDeviceCount(&count);
+  if (err != gpuSuccess) return std::string("no usable GPU: ") + gpuGetErrorString(err);
+  if (count == 0) return "no GPU found";
+  return "";
+}
+
+std::unique_ptr<Backend> make_cuda_backend(int device) { return std::make_unique<gpu::CudaBackend>(device); }
+
+}  // namespace lblight

@@ -1,0 +1,150 @@
+// What one GPU thread does, as LBL_HOSTDEV functions over plain arguments. The CUDA/HIP kernels
+// in cuda_backend.cu are thin wrappers around these, and tests/test_gpu_emulated.cpp runs the
+// very same functions over an emulated grid on the CPU, so indexing, inflow and reductions are
+// checked even on machines without a GPU. The physics itself is lattice/collide.h.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "lblight/backend/boundary.h"
+#include "lblight/lattice/collide.h"
+#include "lblight/lattice/lattice.h"
+
+namespace lblight::gpu {
+
+inline constexpr int kMaxBatch = 64;     // systems one launch updates side by side
+inline constexpr int kMaxChannels = 3;   // distinct colour channels per lattice
+inline constexpr int kMaxMaterialsGpu = 2;
+
+// How a storage type converts to and from the float arithmetic. float here; the .cu file adds
+// the half-precision specialisation.
+template <typename T>
+struct Storage;
+template <>
+struct Storage<float> {
+  LBL_HOSTDEV static float load(float v) { return v; }
+  LBL_HOSTDEV static float store(float v) { return v; }
+};
+
+// Everything a thread needs about the batch, passed by value to every kernel. The state of
+// system s, time level l, direction m, node i sits at
+//   state[s * system_stride + l * level_stride + m * stride + i].
+template <typename T>
+struct BatchArgs {
+  Dims d;
+  long long stride = 0;         // elements between direction arrays (>= node count)
+  long long level_stride = 0;   // 19 * stride
+  long long system_stride = 0;  // 2 * level_stride
+  int systems = 0;
+  int level = 0;                // time level holding the current state
+  const float* density = nullptr;
+  const std::uint8_t* material = nullptr;
+  T* state = nullptr;
+  float* totals = nullptr;      // systems x node count, as of the last measure
+};
+
+// Per-batch tables (GPU: constant memory; emulation: plain arrays) behind one small interface:
+//   int channel(int s); unsigned absorb_bits(int c); float boundary(int s, int m);
+//   const CollisionOp<float>& op(int c, int k);
+
+// One LB step for interior node (x, y, z) of every system in the batch.
+template <typename T, typename Tables>
+LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& tb, int x, int y, int z) {
+  const std::size_t i = a.d.index(x, y, z);
+  const float rho = a.density[i];
+  const unsigned k = a.material[i];
+  const long long sy = a.d.nx, sz = static_cast<long long>(a.d.nx) * a.d.ny;
+  for (int s = 0; s < a.systems; ++s) {
+    const int c = tb.channel(s);
+    const T* src = a.state + s * a.system_stride + a.level * a.level_stride + i;
+    T* dst = a.state + s * a.system_stride + (1 - a.level) * a.level_stride + i;
+    float f[d3q19::kQ];
+    LBL_UNROLL
+    for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
+    const float keep = ((tb.absorb_bits(c) >> k) & 1u) ? 0.0f : 1.0f;
+    collide_node(tb.op(c, static_cast<int>(k)), keep, rho, f, [&](int m, float v) {
+      dst[m * a.stride + d3q19::cx(m) + d3q19::cy(m) * sy + d3q19::cz(m) * sz] = Storage<T>::store(v);
+    });
+  }
+}
+
+// Writes the boundary-fed entries of interior node (x, y, z) into time level `level`.
+template <typename T, typename Tables>
+LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables& tb, int level, int x, int y,
+                                             int z) {
+  const std::size_t i = a.d.index(x, y, z);
+  for (int s = 0; s < a.systems; ++s) {
+    T* f = a.state + s * a.system_stride + level * a.level_stride + i;
+    for (int m = 1; m < d3q19::kQ; ++m)
+      if (fed_by_boundary(a.d, x, y, z, m)) f[m * a.stride] = Storage<T>::store(tb.boundary(s, m));
+  }
+}
+
+// What one interior node contributes to measure() for system s.
+struct NodeResidual {
+  double total = 0, diff = 0, deficit = 0;
+};
+
+// Totals of system s at interior node (x, y, z): stores them and returns how they changed.
+template <typename T, typename Tables>
+LBL_HOSTDEV LBL_FORCEINLINE NodeResidual measure_node(const BatchArgs<T>& a, const Tables& tb, int s, int x, int y,
+                                                      int z) {
+  const std::size_t i = a.d.index(x, y, z);
+  const T* src = a.state + s * a.system_stride + a.level * a.level_stride + i;
+  float f[d3q19::kQ];
+  float t = 0.0f;
+  LBL_UNROLL
+  for (int m = 0; m < d3q19::kQ; ++m) {
+    f[m] = Storage<T>::load(src[m * a.stride]);
+    t += f[m];
+  }
+  float* total = a.totals + static_cast<std::size_t>(s) * a.d.count() + i;
+  NodeResidual r;
+  r.total = t;
+  r.diff = static_cast<double>(t) - static_cast<double>(*total);
+  *total = t;
+  const int c = tb.channel(s);
+  const unsigned k = a.material[i];
+  if (a.density[i] > 0.0f && !((tb.absorb_bits(c) >> k) & 1u))
+    r.deficit = static_cast<double>(f0_deficit(tb.op(c, static_cast<int>(k)), f));
+  return r;
+}
+
+// The seven numbers measure() reduces per system, in a fixed order.
+enum ReduceSlot { kDiffSq, kTotalSq, kDeficitSq, kDiffMax, kTotalMax, kDeficitMax, kNonFinite, kReduceSlots };
+
+LBL_HOSTDEV inline void accumulate(double (&acc)[kReduceSlots], const NodeResidual& r) {
+  acc[kDiffSq] += r.diff * r.diff;
+  acc[kTotalSq] += r.total * r.total;
+  acc[kDeficitSq] += r.deficit * r.deficit;
+  const double ad = r.diff < 0 ? -r.diff : r.diff, at = r.total < 0 ? -r.total : r.total;
+  const double af = r.deficit < 0 ? -r.deficit : r.deficit;
+  acc[kDiffMax] = acc[kDiffMax] > ad ? acc[kDiffMax] : ad;
+  acc[kTotalMax] = acc[kTotalMax] > at ? acc[kTotalMax] : at;
+  acc[kDeficitMax] = acc[kDeficitMax] > af ? acc[kDeficitMax] : af;
+  // r.total - r.total is 0 for finite values and NaN otherwise
+  if (!(r.total - r.total == 0.0)) acc[kNonFinite] = 1.0;
+}
+
+LBL_HOSTDEV inline void combine(double (&acc)[kReduceSlots], const double* other) {
+  for (int k = 0; k < kDiffMax; ++k) acc[k] += other[k];
+  for (int k = kDiffMax; k < kReduceSlots; ++k) acc[k] = acc[k] > other[k] ? acc[k] : other[k];
+}
+
+// Interior node number n (x fastest) to coordinates.
+LBL_HOSTDEV inline void interior_coords(const Dims& d, long long n, int& x, int& y, int& z) {
+  const long long ix = d.nx - 2, iy = d.ny - 2;
+  x = 1 + static_cast<int>(n % ix);
+  y = 1 + static_cast<int>((n / ix) % iy);
+  z = 1 + static_cast<int>(n / (ix * iy));
+}
+
+// Direction-array stride for GPU state: a multiple of 32 elements keeps every array aligned for
+// coalesced access.
+inline long long gpu_stride(const Dims& d) {
+  const long long n = static_cast<long long>(d.count());
+  return (n + 31) / 32 * 32;
+}
+
+}  // namespace lblight::gpu

@@ -1,0 +1,17 @@
+// Runs the GPU tests, or reports them skipped (exit code 77, ctest's SKIP_RETURN_CODE) with the
+// reason when this machine has no usable GPU.
+#define CATCH_CONFIG_RUNNER
+#include <catch2/catch.hpp>
+
+#include <cstdio>
+
+#include "lblight/backend/registry.h"
+
+int main(int argc, char** argv) {
+  const std::string why = lblight::gpu_unavailable_reason();
+  if (!why.empty()) {
+    std::printf("SKIPPED: GPU tests need a usable GPU: %s\n", why.c_str());
+    return 77;
+  }
+  return Catch::Session().run(argc, argv);
+}
