@@ -9,21 +9,31 @@ packages=(
   nlohmann-json3-dev libspdlog-dev catch2
   python3-openvdb   # OpenVDB's own Python reader, used by a test to reopen bake outputs
 )
+# Optional: Debian's hipcc (~13 s, 66 MB download) lets the tests compile the GPU backend as HIP.
+optional=(hipcc)
 
+installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]} == 0)); then
+for p in "${packages[@]}"; do installed "$p" || missing+=("$p"); done
+missing_optional=()
+for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
+if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0)); then
   echo "setup: all build dependencies are installed"
   exit 0
 fi
 
 sudo=""
 if [ "$(id -u)" -ne 0 ]; then
-  command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+  command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]} ${missing_optional[*]}" >&2; exit 1; }
   sudo=sudo
 fi
-echo "setup: installing ${missing[*]}"
 $sudo apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+if ((${#missing_optional[@]})); then
+  echo "setup: installing optional ${missing_optional[*]}"
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing_optional[@]}" ||
+    echo "setup: optional packages unavailable; the HIP compile check will be skipped"
+fi

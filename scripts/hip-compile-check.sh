@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Compiles the GPU backend as HIP (compile only: AMD's gfx90a, no GPU needed), proving the kernel
+# source is written once for CUDA and HIP. Exit 77 (skipped) when hipcc is not installed.
+#   usage: scripts/hip-compile-check.sh [OUT.o]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if ! command -v hipcc >/dev/null; then
+  echo "SKIPPED: hipcc not installed (Debian package hipcc)"
+  exit 77
+fi
+out="${1:-$(mktemp -d)/cuda_backend_hip.o}"
+hipcc --offload-arch=gfx90a -x hip -std=c++17 -Werror -I. -c backends/cuda/cuda_backend.cu -o "$out"
+echo "HIP compile of backends/cuda/cuda_backend.cu for gfx90a: ok ($out)"
