@@ -1,22 +1,39 @@
-// OpenMP backend: the loop around lattice/collide.h. Threads take whole (y, z) rows; each row
-// is one SIMD loop along x. Interior nodes push unconditionally (every neighbour of an interior
-// node exists); boundary inflow entries are written once per batch (backend/boundary.h).
+// OpenMP backend: the loop around lattice/collide.h. Threads take whole (y, z) rows; each row is
+// processed in SIMD chunks of one cache line along x.
+//
+// The CPU runs the update in "pull" form: the state holds post-collision values g at their own
+// node, and a step gathers f_m(q) = g_m(q - c_m), collides at q and stores g(q) back at q. That
+// is the spec's update rule (f(t+1) = S g(t), g = C f) with the same fixed point, the same
+// trajectory and the same totals; it is chosen because every store then lands on its own node:
+// rows are padded so interior chunks start on a cache line, and full chunks leave through
+// non-temporal stores, which skip the read-for-ownership a push scheme pays on every store
+// (a third of its memory traffic). Boundary nodes (density 0, margin >= 1) hold their fixed
+// values permanently, so there is no inflow bookkeeping and no branch in the inner loop.
 #include "backends/openmp/openmp_backend.h"
 
 #include <omp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
-#include <limits>
 #include <stdexcept>
 
-#include "lblight/backend/boundary.h"
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#define LBL_X86 1
+#else
+#define LBL_X86 0
+#endif
+
 #include "lblight/core/aligned_buffer.h"
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
 #include "lblight/lattice/collide.h"
+
+#define LBL_INLINE_LAMBDA __attribute__((always_inline))
 
 namespace lblight {
 namespace {
@@ -30,8 +47,50 @@ struct RowSums {
   bool finite = true;
 };
 
+// One cache line from an aligned buffer to aligned memory, bypassing the caches.
+template <typename Real>
+inline void stream_line(Real* dst, const Real* src) {
+#if LBL_X86 && defined(__AVX512F__)
+  if constexpr (sizeof(Real) == 4) _mm512_stream_ps(reinterpret_cast<float*>(dst), _mm512_load_ps(reinterpret_cast<const float*>(src)));
+  else _mm512_stream_pd(reinterpret_cast<double*>(dst), _mm512_load_pd(reinterpret_cast<const double*>(src)));
+#elif LBL_X86 && defined(__AVX__)
+  for (int h = 0; h < 2; ++h) {
+    if constexpr (sizeof(Real) == 4)
+      _mm256_stream_ps(reinterpret_cast<float*>(dst) + 8 * h, _mm256_load_ps(reinterpret_cast<const float*>(src) + 8 * h));
+    else
+      _mm256_stream_pd(reinterpret_cast<double*>(dst) + 4 * h, _mm256_load_pd(reinterpret_cast<const double*>(src) + 4 * h));
+  }
+#elif LBL_X86
+  for (int q = 0; q < 4; ++q) {
+    if constexpr (sizeof(Real) == 4)
+      _mm_stream_ps(reinterpret_cast<float*>(dst) + 4 * q, _mm_load_ps(reinterpret_cast<const float*>(src) + 4 * q));
+    else
+      _mm_stream_pd(reinterpret_cast<double*>(dst) + 2 * q, _mm_load_pd(reinterpret_cast<const double*>(src) + 2 * q));
+  }
+#else
+  std::memcpy(dst, src, 64);
+#endif
+}
+
+inline void stream_fence() {
+#if LBL_X86
+  _mm_sfence();
+#endif
+}
+
+std::size_t last_level_cache_bytes() {
+  long l3 = -1;
+#ifdef _SC_LEVEL3_CACHE_SIZE
+  l3 = sysconf(_SC_LEVEL3_CACHE_SIZE);
+#endif
+  return l3 > 0 ? static_cast<std::size_t>(l3) : (32u << 20);
+}
+
 template <typename Real>
 class CpuLatticeSolver final : public LatticeSolver {
+  // One SIMD chunk = one cache line of one direction array.
+  static constexpr int kLine = 64 / static_cast<int>(sizeof(Real));
+
  public:
   CpuLatticeSolver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity,
                    int threads)
@@ -51,9 +110,11 @@ class CpuLatticeSolver final : public LatticeSolver {
       absorb_bits_.push_back(bits);
     }
     classify_rows();
-    stride_ = padded_stride(n_);
-    for (int m = 0; m < kQ; ++m)
-      push_offset_[m] = static_cast<long long>(m) * static_cast<long long>(stride_) + neighbour_offset(d_, m);
+    // Padded layout: node x of a row sits at row * pitch_ + x + (kLine - 1), so x = 1 (the first
+    // interior node) starts a cache line.
+    pitch_ = (d_.nx + kLine - 1 + kLine - 1) / kLine * kLine;
+    plane_ = pitch_ * d_.ny;
+    stride_ = padded_stride(static_cast<std::size_t>(plane_ * d_.nz));
     slots_.resize(static_cast<std::size_t>(capacity_));
   }
 
@@ -74,20 +135,27 @@ class CpuLatticeSolver final : public LatticeSolver {
         slot.scratch.allocate(n_);
       }
       fill(slot.state.data(), 2 * kQ * stride_, Real(0));
+      for (int level = 0; level < 2; ++level) set_boundary(slot, level);
       double boundary_total = 0;
       for (double v : slot.spec.boundary) boundary_total += v;
       init_totals(slot.totals.data(), static_cast<Real>(boundary_total));
       init_totals(slot.scratch.data(), static_cast<Real>(boundary_total));
-      slot.cur = 0;
-      // t = 0 has an all-zero interior; what the boundary pushes arrives with the first step.
-      apply_inflow(slot.buffer(1), slot.spec.boundary);
-      slot.inflow_pending = true;
     }
+    now_ = 0;
+    cur_ = 0;
+    const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Real);
+    stream_ = state_bytes > 2.0 * static_cast<double>(last_level_cache_bytes());
   }
 
   void step(int steps) override {
-    for (int t = 0; t < steps; ++t)
-      for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)]);
+    for (int t = 0; t < steps; ++t) {
+      // g(0) = C f(0) = 0 on the interior, which is what both levels already hold: the first
+      // step only advances the clock.
+      if (now_ > 0)
+        for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)]);
+      if (now_ > 0) cur_ = 1 - cur_;
+      ++now_;
+    }
   }
 
   void measure(std::vector<Residual>& out) override {
@@ -96,26 +164,22 @@ class CpuLatticeSolver final : public LatticeSolver {
     std::vector<RowSums> rows(static_cast<std::size_t>(rows_y) * rows_z);
     for (int s = 0; s < active_; ++s) {
       Slot& slot = slots_[static_cast<std::size_t>(s)];
-      const Real* f = slot.buffer(slot.cur);
+      const Real* g = slot.buffer(cur_);
       const Real* prev = slot.totals.data();
       Real* next = slot.scratch.data();
       const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
       const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
-      const std::size_t n = stride_;
-      const int nx = d_.nx;
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
       for (int z = 1; z < d_.nz - 1; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
           const std::size_t base = d_.index(0, y, z);
           RowSums r;
-          for (int x = 1; x < nx - 1; ++x) {
+          for (int x = 1; x < d_.nx - 1; ++x) {
             const std::size_t i = base + static_cast<std::size_t>(x);
-            Real fi[kQ];
+            Real f[kQ];
+            gather(g, state_index(x, y, z), f);
             Real t = 0;
-            for (int m = 0; m < kQ; ++m) {
-              fi[m] = f[static_cast<std::size_t>(m) * n + i];
-              t += fi[m];
-            }
+            for (int m = 0; m < kQ; ++m) t += f[m];
             next[i] = t;
             const double td = static_cast<double>(t);
             const double dd = td - static_cast<double>(prev[i]);
@@ -126,7 +190,7 @@ class CpuLatticeSolver final : public LatticeSolver {
             if (!std::isfinite(td)) r.finite = false;
             const unsigned k = material_[i];
             if (density_[i] > 0.0f && !((absorb_bits >> k) & 1u)) {
-              const double deficit = static_cast<double>(f0_deficit(ops[k], fi));
+              const double deficit = static_cast<double>(f0_deficit(ops[k], f));
               r.deficit_sq += deficit * deficit;
               r.deficit_max = std::max(r.deficit_max, std::fabs(deficit));
             }
@@ -156,27 +220,34 @@ class CpuLatticeSolver final : public LatticeSolver {
   void read_state(int system, std::vector<double>& f) const override {
     const Slot& slot = slots_.at(static_cast<std::size_t>(system));
     f.assign(kQ * n_, 0.0);
-    const Real* src = slot.buffer(slot.cur);
+    const Real* g = slot.buffer(cur_);
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x) {
           const std::size_t i = d_.index(x, y, z);
+          Real fi[kQ] = {};
           const bool boundary = d_.is_boundary(x, y, z);
-          for (int m = 0; m < kQ; ++m)
-            f[static_cast<std::size_t>(m) * n_ + i] =
-                boundary ? slot.spec.boundary[m] : static_cast<double>(src[static_cast<std::size_t>(m) * stride_ + i]);
+          if (!boundary && now_ > 0) gather(g, state_index(x, y, z), fi);
+          for (int m = 0; m < kQ; ++m) f[m * n_ + i] = boundary ? slot.spec.boundary[m] : static_cast<double>(fi[m]);
         }
   }
 
+  // Stores f as the current state: g_m(q - c_m) = f_m(q) wherever q - c_m is interior. Entries
+  // fed by the boundary keep the boundary values.
   void write_state(int system, const std::vector<double>& f) override {
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
-    Real* dst = slot.buffer(slot.cur);
-    for (int m = 0; m < kQ; ++m)
-      for (std::size_t i = 0; i < n_; ++i) dst[static_cast<std::size_t>(m) * stride_ + i] = static_cast<Real>(f[m * n_ + i]);
-    apply_inflow(slot.buffer(0), slot.spec.boundary);
-    apply_inflow(slot.buffer(1), slot.spec.boundary);
-    slot.inflow_pending = false;
+    if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
+    Real* g = slot.buffer(cur_);
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x)
+          for (int m = 0; m < kQ; ++m) {
+            const int px = x - d3q19::cx(m), py = y - d3q19::cy(m), pz = z - d3q19::cz(m);
+            if (d_.is_boundary(px, py, pz)) continue;
+            g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(px, py, pz))] =
+                static_cast<Real>(f[m * n_ + d_.index(x, y, z)]);
+          }
   }
 
   std::size_t bytes_in_use() const override {
@@ -188,23 +259,31 @@ class CpuLatticeSolver final : public LatticeSolver {
  private:
   struct Slot {
     SystemSpec spec;
-    AlignedBuffer<Real> state;  // both time levels: 2 x 19 direction arrays, stride_ apart
+    AlignedBuffer<Real> state;  // both time levels: 2 x 19 direction arrays, stride apart
     AlignedBuffer<Real> totals, scratch;
-    int cur = 0;
-    bool inflow_pending = false;
     std::size_t stride = 0;
-    Real* buffer(int which) { return state.data() + static_cast<std::size_t>(which) * kQ * stride; }
-    const Real* buffer(int which) const { return state.data() + static_cast<std::size_t>(which) * kQ * stride; }
+    Real* buffer(int level) { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
+    const Real* buffer(int level) const { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
   };
 
   // Direction arrays a multiple of 4 KiB apart alias in the CPU's store-to-load checks and
   // stall every load behind every store (a 4x slowdown measured at 128^3); spreading the 38
   // arrays over distinct 64-byte slots modulo 4 KiB avoids that.
   static std::size_t padded_stride(std::size_t count) {
-    constexpr std::size_t kLine = 64 / sizeof(Real);
     std::size_t s = (count + kLine - 1) / kLine * kLine;
     while ((s * sizeof(Real)) % 4096 != 320) s += kLine;
     return s;
+  }
+
+  long long state_index(int x, int y, int z) const {
+    return (static_cast<long long>(z) * d_.ny + y) * pitch_ + x + (kLine - 1);
+  }
+
+  // f_m(q) = g_m(q - c_m): the pre-collision values of node q.
+  void gather(const Real* g, long long q, Real (&f)[kQ]) const {
+    for (int m = 0; m < kQ; ++m)
+      f[m] = g[static_cast<std::size_t>(m) * stride_ +
+               static_cast<std::size_t>(q - d3q19::cx(m) - d3q19::cy(m) * pitch_ - d3q19::cz(m) * plane_)];
   }
 
   // Which materials each interior row holds; rows of one material run the plain collision,
@@ -231,134 +310,145 @@ class CpuLatticeSolver final : public LatticeSolver {
     for (std::size_t i = 0; i < count; ++i) p[i] = v;
   }
 
+  void set_boundary(Slot& slot, int level) const {
+    Real* g = slot.buffer(level);
+    for (int z = 0; z < d_.nz; ++z)
+      for (int y = 0; y < d_.ny; ++y)
+        for (int x = 0; x < d_.nx; ++x)
+          if (d_.is_boundary(x, y, z))
+            for (int m = 0; m < kQ; ++m)
+              g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z))] =
+                  static_cast<Real>(slot.spec.boundary[m]);
+  }
+
   void init_totals(Real* t, Real boundary_total) const {
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x) t[d_.index(x, y, z)] = d_.is_boundary(x, y, z) ? boundary_total : Real(0);
   }
 
-  void apply_inflow(Real* f, const std::array<double, 19>& boundary) const {
-#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
-    for (int z = 1; z < d_.nz - 1; ++z)
-      for (int y = 1; y < d_.ny - 1; ++y)
-        for (int x = 1; x < d_.nx - 1; ++x) {
-          if (!d_.is_boundary(x - 1, y - 1, z - 1) && !d_.is_boundary(x + 1, y + 1, z + 1)) continue;
-          const std::size_t i = d_.index(x, y, z);
-          for (int m = 1; m < kQ; ++m)
-            if (fed_by_boundary(d_, x, y, z, m)) f[static_cast<std::size_t>(m) * stride_ + i] = static_cast<Real>(boundary[m]);
-        }
-  }
-
   void step_system(Slot& slot) {
-    const Real* __restrict src = slot.buffer(slot.cur);
-    Real* __restrict dst = slot.buffer(1 - slot.cur);
+    const Real* src = slot.buffer(cur_);
+    Real* dst = slot.buffer(1 - cur_);
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+    if (stream_) sweep<true>(src, dst, ops, absorb_bits);
+    else sweep<false>(src, dst, ops, absorb_bits);
+  }
+
+  template <bool kStream>
+  void sweep(const Real* src, Real* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
+             unsigned absorb_bits) const {
     const int rows_y = d_.ny - 2;
-#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
-    for (int z = 1; z < d_.nz - 1; ++z)
-      for (int y = 1; y < d_.ny - 1; ++y) {
-        const std::size_t r = static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1);
-        const std::size_t base = d_.index(0, y, z);
-        const unsigned mask = row_mask_[r];
-        if ((mask & (mask - 1)) == 0) {
-          const int k = __builtin_ctz(mask);
-          const bool absorbs = (absorb_bits >> k) & 1u;
-          if (row_empty_[r]) stream_row(src, dst, base, absorbs);
-          else uniform_row(src, dst, base, ops[k], absorbs);
-        } else {
-          mixed_row(src, dst, base, ops, absorb_bits);
+#pragma omp parallel num_threads(threads_)
+    {
+#pragma omp for collapse(2) schedule(static)
+      for (int z = 1; z < d_.nz - 1; ++z)
+        for (int y = 1; y < d_.ny - 1; ++y) {
+          const std::size_t r = static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1);
+          const unsigned mask = row_mask_[r];
+          if ((mask & (mask - 1)) == 0) {
+            const int k = __builtin_ctz(mask);
+            const Real keep = ((absorb_bits >> k) & 1u) ? Real(0) : Real(1);
+            if (row_empty_[r]) stream_row<kStream>(src, dst, y, z, keep);
+            else uniform_row<kStream>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
+          } else if (material_count_ <= 2) {
+            mixed_row<kStream, 2>(src, dst, y, z, ops, absorb_bits);
+          } else {
+            mixed_row<kStream, kMaxMaterials>(src, dst, y, z, ops, absorb_bits);
+          }
         }
-      }
-    slot.cur = 1 - slot.cur;
-    if (slot.inflow_pending) {  // the buffer written next step has not seen the boundary yet
-      apply_inflow(slot.buffer(1 - slot.cur), slot.spec.boundary);
-      slot.inflow_pending = false;
+      if (kStream) stream_fence();  // make this thread's streaming stores visible before the barrier
     }
+  }
+
+  // Runs node(x, sink) for the interior of row (y, z); node hands each post-collision value to
+  // sink(m, value). Full chunks start on a cache line and, with kStream, leave through a small
+  // aligned buffer and non-temporal stores. The remainder is a full-width chunk shifted back to
+  // end at nx-2: it recomputes a few nodes (same inputs, same outputs) instead of running a
+  // scalar tail, which would cost more than the rest of the row.
+  template <bool kStream, typename Node>
+  LBL_FORCEINLINE void run_row(Real* __restrict dst, int y, int z, Node&& node) const {
+    const int nx = d_.nx;
+    const long long srow = state_index(0, y, z);
+    const long long stride = static_cast<long long>(stride_);
+    if (nx - 2 < kLine) {
+      Real* __restrict out = dst + srow;
+#pragma omp simd
+      for (int x = 1; x < nx - 1; ++x) node(x, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = v; });
+      return;
+    }
+    int x0 = 1;
+    for (; x0 + kLine - 1 <= nx - 2; x0 += kLine) {
+      Real* __restrict out = dst + srow + x0;
+      if constexpr (kStream) {
+        alignas(64) Real post[kQ][kLine];
+#pragma omp simd
+        for (int l = 0; l < kLine; ++l) node(x0 + l, [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
+        for (int m = 0; m < kQ; ++m) stream_line(out + m * stride, post[m]);
+      } else {
+#pragma omp simd
+        for (int l = 0; l < kLine; ++l) node(x0 + l, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = v; });
+      }
+    }
+    if (x0 <= nx - 2) {
+      const int xs = nx - 1 - kLine;
+      Real* __restrict out = dst + srow + xs;
+#pragma omp simd
+      for (int l = 0; l < kLine; ++l) node(xs + l, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = v; });
+    }
+  }
+
+  // Gathers f for node x of the row whose state starts at `row` (in the source level).
+  LBL_FORCEINLINE void gather_row(const Real* __restrict src, long long row, int x, Real (&f)[kQ]) const {
+    const long long stride = static_cast<long long>(stride_), pitch = pitch_, plane = plane_;
+    LBL_UNROLL
+    for (int m = 0; m < kQ; ++m)
+      f[m] = src[m * stride + row + x - d3q19::cx(m) - d3q19::cy(m) * pitch - d3q19::cz(m) * plane];
   }
 
   // Row with no medium: collision is the identity, only streaming remains.
-  void stream_row(const Real* __restrict src, Real* __restrict dst, std::size_t base, bool absorbs) const {
-    const std::size_t n = stride_;
-    const int nx = d_.nx;
-    for (int m = 0; m < kQ; ++m) {
-      const Real* __restrict in = src + static_cast<std::size_t>(m) * n + base;
-      Real* __restrict out = dst + push_offset_[m] + static_cast<long long>(base);
-      if (m == 0 && absorbs) {
-        for (int x = 1; x < nx - 1; ++x) out[x] = Real(0);
-      } else {
-#pragma omp simd
-        for (int x = 1; x < nx - 1; ++x) out[x] = in[x];
-      }
-    }
-  }
-
-  void uniform_row(const Real* __restrict src, Real* __restrict dst, std::size_t base, const CollisionOp<Real>& op,
-                   bool absorbs) const {
-    const int nx = d_.nx;
-    const float* __restrict rho = density_.data() + base;
-    const long long n = static_cast<long long>(stride_), sy = nx, sz = static_cast<long long>(nx) * d_.ny;
-    const Real* __restrict in = src + base;
-    Real* __restrict out = dst + base;
-    const Real f0_keep = absorbs ? Real(0) : Real(1);
-    for_each_chunk(nx, [&](int x) __attribute__((always_inline)) {
+  template <bool kStream>
+  void stream_row(const Real* __restrict src, Real* __restrict dst, int y, int z, Real keep) const {
+    const long long row = state_index(0, y, z);
+    run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
+      gather_row(src, row, x, f);
+      f[0] *= keep;
       LBL_UNROLL
-      for (int m = 0; m < kQ; ++m) f[m] = in[m * n + x];
-      collide_node(op, f0_keep, static_cast<Real>(rho[x]), f, [&](int m, Real v) {
-        out[m * n + d3q19::cx(m) + d3q19::cy(m) * sy + d3q19::cz(m) * sz + x] = v;
-      });
+      for (int m = 0; m < kQ; ++m) sink(m, f[m]);
     });
   }
 
-  // Runs node(x) for x = 1 .. nx-2 as SIMD loops of a fixed width. The last chunk is shifted
-  // back to end at nx-2 and recomputes a few nodes (same inputs, same outputs) instead of
-  // leaving a scalar remainder, which would cost more than the rest of the row.
-  template <typename Node>
-  static LBL_FORCEINLINE void for_each_chunk(int nx, Node&& node) {
-    constexpr int kChunk = 16;
-    if (nx - 2 < kChunk) {
-#pragma omp simd
-      for (int x = 1; x < nx - 1; ++x) node(x);
-      return;
-    }
-    for (int x0 = 1; x0 < nx - 1; x0 += kChunk) {
-      const int xs = x0 + kChunk > nx - 1 ? nx - 1 - kChunk : x0;
-#pragma omp simd
-      for (int x = xs; x < xs + kChunk; ++x) node(x);
-    }
+  template <bool kStream>
+  void uniform_row(const Real* __restrict src, Real* __restrict dst, int y, int z, const CollisionOp<Real>& op,
+                   Real keep) const {
+    const long long row = state_index(0, y, z);
+    const float* __restrict rho = density_.data() + d_.index(0, y, z);
+    run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
+      Real f[kQ];
+      gather_row(src, row, x, f);
+      collide_node(op, keep, static_cast<Real>(rho[x]), f, sink);
+    });
   }
 
-  using Ops = std::array<CollisionOp<Real>, kMaxMaterials>;
-
-  void mixed_row(const Real* __restrict src, Real* __restrict dst, std::size_t base, const Ops& ops,
-                 unsigned absorb_bits) const {
-    if (material_count_ <= 2) mixed_row_k<2>(src, dst, base, ops, absorb_bits);
-    else mixed_row_k<kMaxMaterials>(src, dst, base, ops, absorb_bits);
-  }
-
-  template <int K>
-  void mixed_row_k(const Real* __restrict src, Real* __restrict dst, std::size_t base, const Ops& ops,
-                   unsigned absorb_bits) const {
-    const int nx = d_.nx;
+  template <bool kStream, int K>
+  void mixed_row(const Real* __restrict src, Real* __restrict dst, int y, int z,
+                 const std::array<CollisionOp<Real>, kMaxMaterials>& ops, unsigned absorb_bits) const {
+    const long long row = state_index(0, y, z);
+    const std::size_t base = d_.index(0, y, z);
     const float* __restrict density = density_.data() + base;
     const std::uint8_t* __restrict mat = material_.data() + base;
-    const long long n = static_cast<long long>(stride_), sy = nx, sz = static_cast<long long>(nx) * d_.ny;
-    const Real* __restrict in = src + base;
-    Real* __restrict out = dst + base;
     const CollisionOp<Real>* om[K];
     for (int k = 0; k < K; ++k) om[k] = &ops[static_cast<std::size_t>(k)];
-    for_each_chunk(nx, [&](int x) __attribute__((always_inline)) {
+    run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
-      LBL_UNROLL
-      for (int m = 0; m < kQ; ++m) f[m] = in[m * n + x];
+      gather_row(src, row, x, f);
       const unsigned k_node = mat[x];
       Real rho[K];
       for (int k = 0; k < K; ++k) rho[k] = static_cast<unsigned>(k) == k_node ? static_cast<Real>(density[x]) : Real(0);
-      const Real f0_keep = static_cast<Real>(((absorb_bits >> k_node) & 1u) ^ 1u);
-      collide_node_multi<K>(om, rho, f0_keep, f, [&](int m, Real v) {
-        out[m * n + d3q19::cx(m) + d3q19::cy(m) * sy + d3q19::cz(m) * sz + x] = v;
-      });
+      const Real keep = static_cast<Real>(((absorb_bits >> k_node) & 1u) ^ 1u);
+      collide_node_multi<K>(om, rho, keep, f, sink);
     });
   }
 
@@ -372,17 +462,18 @@ class CpuLatticeSolver final : public LatticeSolver {
   std::vector<std::array<CollisionOp<Real>, kMaxMaterials>> ops_;  // per channel and material
   std::vector<unsigned> absorb_bits_;     // per channel: bit k set when material k absorbs
   std::vector<std::uint8_t> row_mask_, row_empty_;
-  std::size_t stride_ = 0;                // elements between direction arrays (>= count)
-  long long push_offset_[kQ]{};           // m * stride + offset of p + c_m
+  long long pitch_ = 0, plane_ = 0;       // padded row and plane lengths of the state
+  std::size_t stride_ = 0;                // elements between direction arrays
   std::vector<Slot> slots_;
   int active_ = 0;
+  long long now_ = 0;  // steps since reset
+  int cur_ = 0;        // level holding g(now - 1): f(now) = gather from it
+  bool stream_ = false;
 };
 
 class OpenMpBackend final : public Backend {
  public:
-  explicit OpenMpBackend(int threads) {
-    threads_ = threads > 0 ? threads : omp_get_max_threads();
-  }
+  explicit OpenMpBackend(int threads) { threads_ = threads > 0 ? threads : omp_get_max_threads(); }
   std::string name() const override { return "cpu"; }
   std::string description() const override {
     return "OpenMP, " + std::to_string(threads_) + " thread" + (threads_ == 1 ? "" : "s") + ", " + host_cpu_model();
@@ -390,7 +481,9 @@ class OpenMpBackend final : public Backend {
   bool supports(Precision p) const override { return p != Precision::Float16; }
   std::size_t bytes_per_system(const Dims& d, Precision p) const override {
     const std::size_t v = p == Precision::Float64 ? 8 : 4;
-    return (2 * kQ + 2) * d.count() * v;
+    const std::size_t padded = static_cast<std::size_t>(d.nx + 32) * static_cast<std::size_t>(d.ny) *
+                               static_cast<std::size_t>(d.nz);
+    return (2 * kQ * padded + 2 * d.count()) * v;
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return host_available_memory_bytes(); }
@@ -398,7 +491,7 @@ class OpenMpBackend final : public Backend {
 
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {
-    int capacity = options.max_systems > 0 ? options.max_systems : 3;
+    const int capacity = options.max_systems > 0 ? options.max_systems : 3;
     switch (options.precision) {
       case Precision::Float32: return std::make_unique<CpuLatticeSolver<float>>(g, channels, capacity, threads_);
       case Precision::Float64: return std::make_unique<CpuLatticeSolver<double>>(g, channels, capacity, threads_);
@@ -421,8 +514,15 @@ class OpenMpBackend final : public Backend {
       const auto t0 = std::chrono::steady_clock::now();
       float* __restrict dst = b.data();
       const float* __restrict src = a.data();
-#pragma omp parallel for schedule(static) num_threads(threads_)
-      for (std::size_t i = 0; i < n; ++i) dst[i] = src[i];
+      // Each thread copies its share with memcpy: the C library picks its fastest method
+      // (non-temporal stores for large blocks), so this is the best copy the machine offers.
+#pragma omp parallel num_threads(threads_)
+      {
+        const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+        const std::size_t lo = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(nt);
+        const std::size_t hi = n * static_cast<std::size_t>(t + 1) / static_cast<std::size_t>(nt);
+        std::memcpy(dst + lo, src + lo, (hi - lo) * sizeof(float));
+      }
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       best = std::max(best, 2.0 * static_cast<double>(n * sizeof(float)) / s);
     }
