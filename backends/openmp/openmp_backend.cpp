@@ -93,13 +93,16 @@ class CpuLatticeSolver final : public LatticeSolver {
 
  public:
   CpuLatticeSolver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity,
-                   int threads)
-      : d_(g.dims), n_(g.dims.count()), capacity_(capacity), threads_(threads) {
+                   int threads, StoreMode stores)
+      : d_(g.dims), n_(g.dims.count()), capacity_(capacity), threads_(threads), stores_(stores) {
     if (d_.nx < 3 || d_.ny < 3 || d_.nz < 3) throw_invalid("lattice must have at least 3 nodes per edge");
     density_ = g.density;
     material_ = g.material;
     material_count_ = g.material_count;
-    if (material_count_ < 1 || material_count_ > kMaxMaterials) throw std::logic_error("material count out of range");
+    if (material_count_ < 1 || material_count_ > 2)
+      throw Error(ErrorCategory::Unavailable, "the cpu backend handles up to 2 materials per lattice (medium, wood)");
+    wood_.resize(n_);
+    for (std::size_t i = 0; i < n_; ++i) wood_[i] = material_[i] == 1 ? 1.0f : 0.0f;
     for (const auto& ch : channels) {
       std::array<CollisionOp<Real>, kMaxMaterials> ops{};
       for (int k = 0; k < material_count_; ++k) ops[k] = convert_op<Real>(reduce_omega(ch.omega[k]));
@@ -144,7 +147,8 @@ class CpuLatticeSolver final : public LatticeSolver {
     now_ = 0;
     cur_ = 0;
     const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Real);
-    stream_ = state_bytes > 2.0 * static_cast<double>(last_level_cache_bytes());
+    stream_ = stores_ == StoreMode::Streaming ||
+              (stores_ == StoreMode::Auto && state_bytes > 2.0 * static_cast<double>(last_level_cache_bytes()));
   }
 
   void step(int steps) override {
@@ -352,10 +356,8 @@ class CpuLatticeSolver final : public LatticeSolver {
             const Real keep = ((absorb_bits >> k) & 1u) ? Real(0) : Real(1);
             if (row_empty_[r]) stream_row<kStream>(src, dst, y, z, keep);
             else uniform_row<kStream>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
-          } else if (material_count_ <= 2) {
-            mixed_row<kStream, 2>(src, dst, y, z, ops, absorb_bits);
           } else {
-            mixed_row<kStream, kMaxMaterials>(src, dst, y, z, ops, absorb_bits);
+            mixed_row<kStream>(src, dst, y, z, ops, absorb_bits);
           }
         }
       if (kStream) stream_fence();  // make this thread's streaming stores visible before the barrier
@@ -432,23 +434,35 @@ class CpuLatticeSolver final : public LatticeSolver {
     });
   }
 
-  template <bool kStream, int K>
+  // Rows where materials mix (wood among leaves): one SIMD loop still, as a sum of collisions,
+  //   post = C_medium(f, rho (1 - w)) + C_wood(f, rho w) - f~,   w = 1 on wood nodes, else 0,
+  // each term exact where it does not apply (rho 0 gives f~ exactly), with the node's own f_0
+  // treatment. (A GPU simply picks the node's operator; this form is what GCC vectorises:
+  // operator selection, integer compares and byte loads in the loop all stop it.)
+  template <bool kStream>
   void mixed_row(const Real* __restrict src, Real* __restrict dst, int y, int z,
                  const std::array<CollisionOp<Real>, kMaxMaterials>& ops, unsigned absorb_bits) const {
     const long long row = state_index(0, y, z);
     const std::size_t base = d_.index(0, y, z);
     const float* __restrict density = density_.data() + base;
-    const std::uint8_t* __restrict mat = material_.data() + base;
-    const CollisionOp<Real>* om[K];
-    for (int k = 0; k < K; ++k) om[k] = &ops[static_cast<std::size_t>(k)];
+    const float* __restrict wood = wood_.data() + base;
+    const Real keep0 = (absorb_bits & 1u) ? Real(0) : Real(1);
+    const Real keep1 = (absorb_bits & 2u) ? Real(0) : Real(1);
+    const CollisionOp<Real>& medium = ops[0];
+    const CollisionOp<Real>& woody = ops[1];
     run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       gather_row(src, row, x, f);
-      const unsigned k_node = mat[x];
-      Real rho[K];
-      for (int k = 0; k < K; ++k) rho[k] = static_cast<unsigned>(k) == k_node ? static_cast<Real>(density[x]) : Real(0);
-      const Real keep = static_cast<Real>(((absorb_bits >> k_node) & 1u) ^ 1u);
-      collide_node_multi<K>(om, rho, keep, f, sink);
+      const Real w = static_cast<Real>(wood[x]);
+      const Real rho = static_cast<Real>(density[x]);
+      const Real keep = keep0 + (keep1 - keep0) * w;
+      const Real f0t = f[0] * keep;
+      Real acc[kQ];
+      collide_node(medium, keep, rho * (Real(1) - w), f, [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] = v; });
+      collide_node(woody, keep, rho * w, f,
+                   [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] += v - (m == 0 ? f0t : f[m]); });
+      LBL_UNROLL
+      for (int m = 0; m < kQ; ++m) sink(m, acc[m]);
     });
   }
 
@@ -456,8 +470,10 @@ class CpuLatticeSolver final : public LatticeSolver {
   std::size_t n_;
   int capacity_;
   int threads_;
+  StoreMode stores_;
   std::vector<float> density_;
   std::vector<std::uint8_t> material_;
+  std::vector<float> wood_;  // 1 on wood nodes: the mixed-row kernel's material as a number
   int material_count_ = 1;
   std::vector<std::array<CollisionOp<Real>, kMaxMaterials>> ops_;  // per channel and material
   std::vector<unsigned> absorb_bits_;     // per channel: bit k set when material k absorbs
@@ -493,8 +509,10 @@ class OpenMpBackend final : public Backend {
                                         const SolverOptions& options) const override {
     const int capacity = options.max_systems > 0 ? options.max_systems : 3;
     switch (options.precision) {
-      case Precision::Float32: return std::make_unique<CpuLatticeSolver<float>>(g, channels, capacity, threads_);
-      case Precision::Float64: return std::make_unique<CpuLatticeSolver<double>>(g, channels, capacity, threads_);
+      case Precision::Float32:
+        return std::make_unique<CpuLatticeSolver<float>>(g, channels, capacity, threads_, options.stores);
+      case Precision::Float64:
+        return std::make_unique<CpuLatticeSolver<double>>(g, channels, capacity, threads_, options.stores);
       default:
         throw Error(ErrorCategory::Unavailable, "the cpu backend stores float32 or float64, not " +
                                                     std::string(to_string(options.precision)));

@@ -18,7 +18,7 @@ namespace lblight {
 enum class Precision { Float32, Float64, Float16 };
 const char* to_string(Precision p);
 
-inline constexpr int kMaxMaterials = 4;
+inline constexpr int kMaxMaterials = 2;  // medium (leaf) and wood
 
 // What stays fixed while a lattice is solved: its shape, medium density and material per node.
 // The boundary layer (spec sec. 4) must have density 0.
@@ -56,9 +56,14 @@ struct Residual {
   bool finite = true;      // false once any total is NaN or Inf
 };
 
+// How a CPU backend writes the lattice state: non-temporal ("streaming") stores skip the read for
+// ownership but bypass the caches, so they pay off only for lattices larger than the cache.
+enum class StoreMode { Auto, Regular, Streaming };
+
 struct SolverOptions {
   Precision precision = Precision::Float32;
   int max_systems = 0;  // systems per batch; 0 lets the backend choose from its memory
+  StoreMode stores = StoreMode::Auto;
 };
 
 // A lattice resident on a backend, able to run a batch of systems side by side.

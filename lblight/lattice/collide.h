@@ -2,6 +2,10 @@
 //   post_m = f~_m + rho * sum_n Omega_mn f~_n
 // with Omega applied in its reduced form (collision_op.h). Backends supply only the loop
 // around it (OpenMP rows, GPU threads).
+//
+// Written for GCC's vectoriser as much as for GPUs: inputs are read-only arrays (copying a local
+// array blocks vectorisation of the caller's loop), absorption is a factor rather than a branch,
+// and material choices are value selects rather than conditional loads.
 #pragma once
 
 #include "lblight/core/hostdev.h"
@@ -54,54 +58,23 @@ LBL_HOSTDEV LBL_FORCEINLINE Real f0_deficit(const CollisionOp<OpReal>& op, const
 
 // The whole per-node update for a node of one material; post_m goes to store(m, value) as soon
 // as it is known. f0_keep is 0 for materials that absorb ("green" nodes dump what they absorbed
-// last step, 001 Listing 5.1) and 1 otherwise: a factor rather than a branch keeps CPU loops SIMD.
+// last step, 001 Listing 5.1) and 1 otherwise.
 template <typename Real, typename OpReal, typename Store>
 LBL_HOSTDEV LBL_FORCEINLINE void collide_node(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
-                                              Real (&f)[d3q19::kQ], Store&& store) {
-  f[0] *= f0_keep;
+                                              const Real (&f)[d3q19::kQ], Store&& store) {
+  const Real f0 = f[0] * f0_keep;
   Real e[kPairs], o[kPairs];
   split_pairs(f, e, o);
-  Real s0 = static_cast<Real>(op.diag0) * f[0];
+  Real s0 = static_cast<Real>(op.diag0) * f0;
   LBL_UNROLL
   for (int k = 0; k < kPairs; ++k) s0 += static_cast<Real>(op.row0[k]) * e[k];
-  store(0, f[0] + rho * s0);
+  store(0, f0 + rho * s0);
   LBL_UNROLL
   for (int m = 0; m < kPairs; ++m) {
     Real E, O;
-    pair_rows(op, m, f[0], e, o, E, O);
+    pair_rows(op, m, f0, e, o, E, O);
     store(2 * m + 1, f[2 * m + 1] + rho * (E + O));
     store(2 * m + 2, f[2 * m + 2] + rho * (E - O));
-  }
-}
-
-// The same for a node among several materials: material k contributes with density rho[k]
-// (zero for every material but the node's own), so a row of mixed nodes shares one SIMD loop.
-template <int kMaterials, typename Real, typename OpReal, typename Store>
-LBL_HOSTDEV LBL_FORCEINLINE void collide_node_multi(const CollisionOp<OpReal>* const (&ops)[kMaterials],
-                                                    const Real (&rho)[kMaterials], Real f0_keep,
-                                                    Real (&f)[d3q19::kQ], Store&& store) {
-  f[0] *= f0_keep;
-  Real e[kPairs], o[kPairs];
-  split_pairs(f, e, o);
-  Real acc0 = f[0];
-  for (int k = 0; k < kMaterials; ++k) {
-    Real s0 = static_cast<Real>(ops[k]->diag0) * f[0];
-    LBL_UNROLL
-    for (int j = 0; j < kPairs; ++j) s0 += static_cast<Real>(ops[k]->row0[j]) * e[j];
-    acc0 += rho[k] * s0;
-  }
-  store(0, acc0);
-  LBL_UNROLL
-  for (int m = 0; m < kPairs; ++m) {
-    Real a = f[2 * m + 1], b = f[2 * m + 2];
-    for (int k = 0; k < kMaterials; ++k) {
-      Real E, O;
-      pair_rows(*ops[k], m, f[0], e, o, E, O);
-      a += rho[k] * (E + O);
-      b += rho[k] * (E - O);
-    }
-    store(2 * m + 1, a);
-    store(2 * m + 2, b);
   }
 }
 
