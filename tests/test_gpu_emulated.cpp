@@ -45,15 +45,14 @@ class EmulatedGpu {
     const Dims& d = g_.dims;
     a_.d = d;
     a_.stride = gpu::gpu_stride(d);
-    a_.level_stride = 19 * a_.stride;
-    a_.system_stride = 2 * a_.level_stride;
+    a_.system_stride = 2 * 19 * a_.stride;
     a_.systems = static_cast<int>(batch.size());
     a_.density = g_.density.data();
     a_.material = g_.material.data();
     state_.assign(static_cast<std::size_t>(a_.system_stride * a_.systems), 0.0f);
     totals_.assign(static_cast<std::size_t>(a_.systems) * d.count(), 0.0f);
-    a_.state = state_.data();
     a_.totals = totals_.data();
+    set_level(0);
     for (int s = 0; s < a_.systems; ++s) {  // init_totals_kernel
       float bt = 0;
       for (int m = 0; m < 19; ++m) bt += tb_.boundary(s, m);
@@ -71,9 +70,9 @@ class EmulatedGpu {
       for (int z = 1; z < d.nz - 1; ++z)
         for (int y = 1; y < d.ny - 1; ++y)
           for (int x = 1; x < d.nx - 1; ++x) gpu::step_node(a_, tb_, x, y, z);
-      a_.level = 1 - a_.level;
+      set_level(1 - level_);
       if (first_) {
-        inflow(1 - a_.level);
+        inflow(1 - level_);
         first_ = false;
       }
     }
@@ -115,15 +114,23 @@ class EmulatedGpu {
  private:
   void inflow(int level) {
     const Dims& d = a_.d;
+    float* target = state_.data() + static_cast<long long>(level) * 19 * a_.stride;
     for (int z = 1; z < d.nz - 1; ++z)
       for (int y = 1; y < d.ny - 1; ++y)
-        for (int x = 1; x < d.nx - 1; ++x) gpu::inflow_node(a_, tb_, level, x, y, z);
+        for (int x = 1; x < d.nx - 1; ++x) gpu::inflow_node(a_, tb_, target, false, x, y, z);
+  }
+
+  void set_level(int level) {
+    level_ = level;
+    a_.cur = state_.data() + static_cast<long long>(level) * 19 * a_.stride;
+    a_.next = state_.data() + static_cast<long long>(1 - level) * 19 * a_.stride;
   }
 
   LatticeGeometry g_;
   HostTables tb_;
   gpu::BatchArgs<float> a_;
   std::vector<float> state_, totals_;
+  int level_ = 0;
   bool first_ = true;
 };
 

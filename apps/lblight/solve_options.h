@@ -22,6 +22,7 @@ struct SolveOptions {
   std::string iterations;  // empty = the scene's
   double tolerance = 0;    // 0 = the scene's
   std::string precision;   // empty = the scene's
+  std::string method;      // empty = the scene's
 
   void add_to(CLI::App& cmd);
   PlanOverrides overrides() const;

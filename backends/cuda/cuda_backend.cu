@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <type_traits>
 #include <vector>
 
@@ -57,13 +58,53 @@ __global__ void step_kernel(BatchArgs<T> a) {
 }
 
 template <typename T>
-__global__ void inflow_kernel(BatchArgs<T> a, int level) {
+__global__ void inflow_kernel(BatchArgs<T> a, T* level, bool zero) {
   const int x = 1 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   if (x >= a.d.nx - 1) return;
   const int y = 1 + static_cast<int>(blockIdx.y), z = 1 + static_cast<int>(blockIdx.z);
   if (x > 1 && x < a.d.nx - 2 && y > 1 && y < a.d.ny - 2 && z > 1 && z < a.d.nz - 2) return;
-  inflow_node(a, DeviceTables{}, level, x, y, z);
+  inflow_node(a, DeviceTables{}, level, zero, x, y, z);
 }
+
+// y = a x + b y over n elements.
+template <typename T>
+__global__ void axpby_kernel(float a, const T* x, float b, T* y, long long n) {
+  for (long long i = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x; i < n;
+       i += static_cast<long long>(gridDim.x) * blockDim.x)
+    y[i] = Storage<T>::store(a * Storage<T>::load(x[i]) + b * Storage<T>::load(y[i]));
+}
+
+// Block partial sums of x . y, for finish_dot_kernel.
+template <typename T>
+__global__ void dot_kernel(const T* x, const T* y, long long n, double* partial) {
+  __shared__ double shared[kReduceBlock];
+  double sum = 0;
+  for (long long i = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x; i < n;
+       i += static_cast<long long>(gridDim.x) * blockDim.x)
+    sum += static_cast<double>(Storage<T>::load(x[i])) * static_cast<double>(Storage<T>::load(y[i]));
+  shared[threadIdx.x] = sum;
+  __syncthreads();
+  for (int width = kReduceBlock / 2; width > 0; width /= 2) {
+    if (static_cast<int>(threadIdx.x) < width) shared[threadIdx.x] += shared[threadIdx.x + width];
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) partial[blockIdx.x] = shared[0];
+}
+
+__global__ void finish_dot_kernel(const double* partial, int blocks, double* out) {
+  __shared__ double shared[kReduceBlock];
+  double sum = 0;
+  for (int b = static_cast<int>(threadIdx.x); b < blocks; b += kReduceBlock) sum += partial[b];
+  shared[threadIdx.x] = sum;
+  __syncthreads();
+  for (int width = kReduceBlock / 2; width > 0; width /= 2) {
+    if (static_cast<int>(threadIdx.x) < width) shared[threadIdx.x] += shared[threadIdx.x + width];
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) *out = shared[0];
+}
+
+constexpr int kVectorBlocks = 1024;  // grid of the vector kernels (grid-stride loops)
 
 // Totals at t = 0: interior 0, boundary nodes the sum of their fixed values.
 __global__ void init_totals_kernel(float* totals, Dims d, int systems) {
@@ -226,7 +267,7 @@ class Solver final : public LatticeSolver {
     init_totals_kernel<<<static_cast<unsigned>((count_ + kReduceBlock - 1) / kReduceBlock), kReduceBlock>>>(
         totals_.get(), d_, a.systems);
     GPU_CHECK(gpuGetLastError());
-    inflow(1);  // what the boundary pushes arrives with the first step
+    inflow(level_ptr(0, 1), false);  // what the boundary pushes arrives with the first step
     inflow_pending_ = true;
   }
 
@@ -237,7 +278,7 @@ class Solver final : public LatticeSolver {
       GPU_CHECK(gpuGetLastError());
       level_ = 1 - level_;
       if (inflow_pending_) {
-        inflow(1 - level_);
+        inflow(level_ptr(0, 1 - level_), false);
         inflow_pending_ = false;
       }
     }
@@ -294,14 +335,70 @@ class Solver final : public LatticeSolver {
       for (std::size_t i = 0; i < count_; ++i) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
     GPU_CHECK(gpuMemcpy(level_ptr(system, level_), raw.data(), raw.size() * sizeof(T), gpuMemcpyHostToDevice));
     bind();
-    inflow(0);
-    inflow(1);
+    inflow(level_ptr(0, 0), false);
+    inflow(level_ptr(0, 1), false);
     inflow_pending_ = false;
   }
 
+  // Krylov vectors, push form: a vector is a full state (f values) of system 0, boundary-fed
+  // entries included; A x leaves those entries 0, b = T(0) holds the boundary values there.
+  void vectors_reserve(int count) override {
+    if (std::is_same_v<T, gpu_half>)
+      throw Error(ErrorCategory::Unavailable, "the Krylov solver needs float32 storage (not float16)");
+    const std::size_t first = vectors_.size();
+    if (static_cast<int>(first) >= count) return;
+    vectors_.resize(static_cast<std::size_t>(count));
+    for (std::size_t v = first; v < vectors_.size(); ++v) {
+      vectors_[v] = std::make_unique<DeviceBuffer<T>>(19 * static_cast<std::size_t>(stride_));
+      GPU_CHECK(gpuMemset(vectors_[v]->get(), 0, vectors_[v]->bytes()));
+    }
+    dot_partial_.allocate(kVectorBlocks + 1);
+  }
+  void vector_from_state(int v) override {
+    GPU_CHECK(gpuMemcpy(vec(v), level_ptr(0, level_), vector_bytes(), gpuMemcpyDeviceToDevice));
+  }
+  void vector_to_state(int v) override {
+    bind();
+    GPU_CHECK(gpuMemcpy(level_ptr(0, level_), vec(v), vector_bytes(), gpuMemcpyDeviceToDevice));
+    inflow(level_ptr(0, 0), false);
+    inflow(level_ptr(0, 1), false);
+    inflow_pending_ = false;
+  }
+  void vector_step_offset(int v) override {
+    bind();
+    GPU_CHECK(gpuMemset(vec(v), 0, vector_bytes()));
+    inflow(vec(v), false, 1);
+  }
+  void vector_apply(int x, int y) override {
+    bind();
+    BatchArgs<T> a = args();
+    a.systems = 1;
+    a.cur = vec(x);
+    a.next = vec(y);
+    step_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(a);
+    GPU_CHECK(gpuGetLastError());
+    inflow(vec(y), true, 1);
+  }
+  void vector_axpby(double a, int x, double b, int y) override {
+    axpby_kernel<T><<<kVectorBlocks, kReduceBlock>>>(static_cast<float>(a), vec(x), static_cast<float>(b), vec(y),
+                                                     19 * stride_);
+    GPU_CHECK(gpuGetLastError());
+  }
+  double vector_dot(int x, int y) override {
+    dot_kernel<T><<<kVectorBlocks, kReduceBlock>>>(vec(x), vec(y), 19 * stride_, dot_partial_.get());
+    GPU_CHECK(gpuGetLastError());
+    finish_dot_kernel<<<1, kReduceBlock>>>(dot_partial_.get(), kVectorBlocks, dot_partial_.get() + kVectorBlocks);
+    GPU_CHECK(gpuGetLastError());
+    double out = 0;
+    GPU_CHECK(gpuMemcpy(&out, dot_partial_.get() + kVectorBlocks, sizeof(double), gpuMemcpyDeviceToHost));
+    return out;
+  }
+
   std::size_t bytes_in_use() const override {
-    return density_.bytes() + material_.bytes() + state_.bytes() + totals_.bytes() + partial_.bytes() +
-           reduced_.bytes();
+    std::size_t bytes = density_.bytes() + material_.bytes() + state_.bytes() + totals_.bytes() + partial_.bytes() +
+                        reduced_.bytes() + dot_partial_.bytes();
+    for (const auto& v : vectors_) bytes += v->bytes();
+    return bytes;
   }
 
  private:
@@ -321,21 +418,26 @@ class Solver final : public LatticeSolver {
     BatchArgs<T> a;
     a.d = d_;
     a.stride = stride_;
-    a.level_stride = 19 * stride_;
     a.system_stride = 2 * 19 * stride_;
     a.systems = static_cast<int>(batch_.size());
-    a.level = level_;
     a.density = density_.get();
     a.material = material_.get();
-    a.state = state_.get();
+    a.cur = level_ptr(0, level_);
+    a.next = level_ptr(0, 1 - level_);
     a.totals = totals_.get();
     return a;
   }
 
-  void inflow(int level) {
-    inflow_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(args(), level);
+  // Boundary-fed entries of `level` (system 0's layout) for `systems` systems (-1: the batch).
+  void inflow(T* level, bool zero, int systems = -1) {
+    BatchArgs<T> a = args();
+    if (systems >= 0) a.systems = systems;
+    inflow_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(a, level, zero);
     GPU_CHECK(gpuGetLastError());
   }
+
+  T* vec(int v) const { return vectors_.at(static_cast<std::size_t>(v))->get(); }
+  std::size_t vector_bytes() const { return 19 * static_cast<std::size_t>(stride_) * sizeof(T); }
 
   // Puts this solver's tables into constant memory unless they are there already.
   void bind() {
@@ -365,7 +467,8 @@ class Solver final : public LatticeSolver {
   DeviceBuffer<std::uint8_t> material_;
   DeviceBuffer<T> state_;
   DeviceBuffer<float> totals_;
-  DeviceBuffer<double> partial_, reduced_;
+  DeviceBuffer<double> partial_, reduced_, dot_partial_;
+  std::vector<std::unique_ptr<DeviceBuffer<T>>> vectors_;
   int reduce_blocks_ = 0;
   std::vector<SystemSpec> batch_;
   int level_ = 0;

@@ -27,20 +27,19 @@ struct Storage<float> {
   LBL_HOSTDEV static float store(float v) { return v; }
 };
 
-// Everything a thread needs about the batch, passed by value to every kernel. The state of
-// system s, time level l, direction m, node i sits at
-//   state[s * system_stride + l * level_stride + m * stride + i].
+// Everything a thread needs about the batch, passed by value to every kernel. Direction m of
+// node i of system s sits at cur[s * system_stride + m * stride + i] (the current state) and
+// next[...] (where a step writes); a Krylov solve points cur and next at its vectors.
 template <typename T>
 struct BatchArgs {
   Dims d;
   long long stride = 0;         // elements between direction arrays (>= node count)
-  long long level_stride = 0;   // 19 * stride
-  long long system_stride = 0;  // 2 * level_stride
+  long long system_stride = 0;  // elements between systems
   int systems = 0;
-  int level = 0;                // time level holding the current state
   const float* density = nullptr;
   const std::uint8_t* material = nullptr;
-  T* state = nullptr;
+  T* cur = nullptr;
+  T* next = nullptr;
   float* totals = nullptr;      // systems x node count, as of the last measure
 };
 
@@ -57,8 +56,8 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
   const long long sy = a.d.nx, sz = static_cast<long long>(a.d.nx) * a.d.ny;
   for (int s = 0; s < a.systems; ++s) {
     const int c = tb.channel(s);
-    const T* src = a.state + s * a.system_stride + a.level * a.level_stride + i;
-    T* dst = a.state + s * a.system_stride + (1 - a.level) * a.level_stride + i;
+    const T* src = a.cur + s * a.system_stride + i;
+    T* dst = a.next + s * a.system_stride + i;
     float f[d3q19::kQ];
     LBL_UNROLL
     for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
@@ -69,15 +68,16 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
   }
 }
 
-// Writes the boundary-fed entries of interior node (x, y, z) into time level `level`.
+// Writes the boundary-fed entries of interior node (x, y, z) into `level` (the state layout of
+// every system): the systems' boundary values, or 0 for a Krylov vector.
 template <typename T, typename Tables>
-LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables& tb, int level, int x, int y,
-                                             int z) {
+LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables& tb, T* level, bool zero, int x,
+                                             int y, int z) {
   const std::size_t i = a.d.index(x, y, z);
   for (int s = 0; s < a.systems; ++s) {
-    T* f = a.state + s * a.system_stride + level * a.level_stride + i;
+    T* f = level + s * a.system_stride + i;
     for (int m = 1; m < d3q19::kQ; ++m)
-      if (fed_by_boundary(a.d, x, y, z, m)) f[m * a.stride] = Storage<T>::store(tb.boundary(s, m));
+      if (fed_by_boundary(a.d, x, y, z, m)) f[m * a.stride] = Storage<T>::store(zero ? 0.0f : tb.boundary(s, m));
   }
 }
 
@@ -91,7 +91,7 @@ template <typename T, typename Tables>
 LBL_HOSTDEV LBL_FORCEINLINE NodeResidual measure_node(const BatchArgs<T>& a, const Tables& tb, int s, int x, int y,
                                                       int z) {
   const std::size_t i = a.d.index(x, y, z);
-  const T* src = a.state + s * a.system_stride + a.level * a.level_stride + i;
+  const T* src = a.cur + s * a.system_stride + i;
   float f[d3q19::kQ];
   float t = 0.0f;
   LBL_UNROLL

@@ -255,9 +255,76 @@ class CpuLatticeSolver final : public LatticeSolver {
   }
 
   std::size_t bytes_in_use() const override {
-    std::size_t bytes = density_.size() * sizeof(float) + material_.size();
+    std::size_t bytes = density_.size() * sizeof(float) + material_.size() + wood_.size() * sizeof(float);
     for (const Slot& s : slots_) bytes += (s.state.size() + s.totals.size() + s.scratch.size()) * sizeof(Real);
+    for (const auto& v : vectors_) bytes += v.size() * sizeof(Real);
     return bytes;
+  }
+
+  // Krylov vectors: one time level in the padded state layout (post-collision values g), with
+  // the boundary positions held at 0.
+  void vectors_reserve(int count) override {
+    if (static_cast<int>(vectors_.size()) >= count) return;
+    const std::size_t first = vectors_.size();
+    vectors_.resize(static_cast<std::size_t>(count));
+    for (std::size_t v = first; v < vectors_.size(); ++v) {
+      vectors_[v].allocate(kQ * stride_);
+      fill(vectors_[v].data(), kQ * stride_, Real(0));
+    }
+  }
+
+  void vector_from_state(int v) override {
+    Slot& slot = slots_.front();
+    copy(slot.buffer(cur_), vec(v));
+    zero_boundary(vec(v));
+  }
+
+  void vector_to_state(int v) override {
+    Slot& slot = slots_.front();
+    copy(vec(v), slot.buffer(cur_));
+    set_boundary(slot, cur_);
+    if (now_ == 0) now_ = 1;  // the state is now an arbitrary g, not the t = 0 special case
+  }
+
+  void vector_step_offset(int v) override {
+    // b = T(0): one step from a zero interior with the real boundary values, built in the
+    // free time level.
+    Slot& slot = slots_.front();
+    Real* zero = slot.buffer(1 - cur_);
+    fill(zero, kQ * stride_, Real(0));
+    set_boundary(slot, 1 - cur_);
+    fill(vec(v), kQ * stride_, Real(0));
+    sweep_system(slot, zero, vec(v));
+  }
+
+  void vector_apply(int x, int y) override { sweep_system(slots_.front(), vec(x), vec(y)); }
+
+  void vector_axpby(double a, int x, double b, int y) override {
+    const Real* __restrict px = vec(x);
+    Real* __restrict py = vec(y);
+    const Real ra = static_cast<Real>(a), rb = static_cast<Real>(b);
+    const std::size_t n = kQ * stride_;
+#pragma omp parallel for simd schedule(static) num_threads(threads_)
+    for (std::size_t i = 0; i < n; ++i) py[i] = ra * px[i] + rb * py[i];
+  }
+
+  double vector_dot(int x, int y) override {
+    const Real* px = vec(x);
+    const Real* py = vec(y);
+    const std::size_t n = kQ * stride_;
+    constexpr std::size_t kBlock = 1 << 14;  // fixed blocks, added in order: thread-count independent
+    const std::size_t blocks = (n + kBlock - 1) / kBlock;
+    std::vector<double> partial(blocks, 0.0);
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (std::size_t b = 0; b < blocks; ++b) {
+      double sum = 0;
+      const std::size_t end = std::min(n, (b + 1) * kBlock);
+      for (std::size_t i = b * kBlock; i < end; ++i) sum += static_cast<double>(px[i]) * static_cast<double>(py[i]);
+      partial[b] = sum;
+    }
+    double total = 0;
+    for (double p : partial) total += p;
+    return total;
   }
 
  private:
@@ -314,8 +381,8 @@ class CpuLatticeSolver final : public LatticeSolver {
     for (std::size_t i = 0; i < count; ++i) p[i] = v;
   }
 
-  void set_boundary(Slot& slot, int level) const {
-    Real* g = slot.buffer(level);
+  void set_boundary(const Slot& slot, int level) const {
+    Real* g = const_cast<Real*>(slot.buffer(level));
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x)
@@ -331,13 +398,31 @@ class CpuLatticeSolver final : public LatticeSolver {
         for (int x = 0; x < d_.nx; ++x) t[d_.index(x, y, z)] = d_.is_boundary(x, y, z) ? boundary_total : Real(0);
   }
 
-  void step_system(Slot& slot) {
-    const Real* src = slot.buffer(cur_);
-    Real* dst = slot.buffer(1 - cur_);
+  void step_system(Slot& slot) { sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_)); }
+
+  // One pull step from level src to level dst with the materials of slot's channel.
+  void sweep_system(const Slot& slot, const Real* src, Real* dst) const {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     if (stream_) sweep<true>(src, dst, ops, absorb_bits);
     else sweep<false>(src, dst, ops, absorb_bits);
+  }
+
+  Real* vec(int v) { return vectors_.at(static_cast<std::size_t>(v)).data(); }
+
+  void copy(const Real* src, Real* dst) const {
+    const std::size_t n = kQ * stride_;
+#pragma omp parallel for simd schedule(static) num_threads(threads_)
+    for (std::size_t i = 0; i < n; ++i) dst[i] = src[i];
+  }
+
+  void zero_boundary(Real* g) const {
+    for (int z = 0; z < d_.nz; ++z)
+      for (int y = 0; y < d_.ny; ++y)
+        for (int x = 0; x < d_.nx; ++x)
+          if (d_.is_boundary(x, y, z))
+            for (int m = 0; m < kQ; ++m)
+              g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z))] = Real(0);
   }
 
   template <bool kStream>
@@ -481,6 +566,7 @@ class CpuLatticeSolver final : public LatticeSolver {
   long long pitch_ = 0, plane_ = 0;       // padded row and plane lengths of the state
   std::size_t stride_ = 0;                // elements between direction arrays
   std::vector<Slot> slots_;
+  std::vector<AlignedBuffer<Real>> vectors_;  // Krylov vectors
   int active_ = 0;
   long long now_ = 0;  // steps since reset
   int cur_ = 0;        // level holding g(now - 1): f(now) = gather from it

@@ -87,6 +87,18 @@ class LatticeSolver {
   virtual void write_state(int system, const std::vector<double>& f) = 0;
 
   virtual std::size_t bytes_in_use() const = 0;  // memory held on the backend's device
+
+  // Vectors for Krylov solvers (solve/krylov.h), shaped like the state of system 0 of the batch
+  // and living on the backend's device; one call per vector operation. A step is affine,
+  // T(x) = A x + b; the steady state solves (I - A) x = b. Vectors exclude what the boundary
+  // fixes (those entries stay 0), so A is one step with all boundary values 0.
+  virtual void vectors_reserve(int count) = 0;
+  virtual void vector_from_state(int v) = 0;       // v = the current state of system 0
+  virtual void vector_to_state(int v) = 0;         // system 0's state = v (boundary kept)
+  virtual void vector_step_offset(int v) = 0;      // v = b = T(0)
+  virtual void vector_apply(int x, int y) = 0;     // y = A x
+  virtual void vector_axpby(double a, int x, double b, int y) = 0;  // y = a x + b y
+  virtual double vector_dot(int x, int y) = 0;     // summed in a fixed order (deterministic)
 };
 
 class Backend {

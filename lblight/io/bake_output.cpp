@@ -92,6 +92,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["wood_nodes"] = mp.stats.wood;
   model["distinct_channels"] = mp.channels.size();
   model["steps"] = {{"mode", to_string(mp.steps.mode)},
+                    {"method", to_string(mp.steps.method)},
                     {"tolerance", mp.steps.tolerance},
                     {"check_interval", mp.steps.check_interval},
                     {"min_steps", mp.steps.min_steps},
@@ -122,6 +123,8 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     s["error_estimate"] = finite_or_null(r.error_estimate);
     s["error_estimate_max"] = finite_or_null(r.error_estimate_max);
     s["converged"] = r.converged;
+    if (mp.steps.method == SolverMethod::BiCGStab)
+      s["krylov"] = {{"iterations", r.krylov_iterations}, {"relative_residual", r.krylov_residual}};
     nlohmann::json hist = nlohmann::json::array();
     for (const CheckPoint& c : r.history)
       hist.push_back({c.step, c.seconds, finite_or_null(c.change_l2), finite_or_null(c.error_estimate),

@@ -71,9 +71,12 @@ struct LightingSpec {
 };
 
 enum class IterationMode { Auto, Paper, Fixed };
+// Plain iteration of the LB step (the papers), or BiCGStab on the same fixed point (solve/krylov.h).
+enum class SolverMethod { Plain, BiCGStab };
 
 struct SolverSpec {
   IterationMode mode = IterationMode::Auto;
+  SolverMethod method = SolverMethod::Plain;
   int iterations = 0;          // Fixed: step count
   double tolerance = 1e-4;     // Auto: target relative error of the stored totals
   int max_iterations = 0;      // Auto: cap; 0 = 100 x longest lattice edge
@@ -103,6 +106,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file);
 std::vector<int> parse_solution_list(const std::string& text, const Location& where);
 
 const char* to_string(IterationMode mode);
+const char* to_string(SolverMethod method);
 const char* to_string(SourceType type);
 
 }  // namespace lblight

@@ -20,6 +20,8 @@ const char* to_string(IterationMode mode) {
   return "?";
 }
 
+const char* to_string(SolverMethod method) { return method == SolverMethod::BiCGStab ? "bicgstab" : "plain"; }
+
 const char* to_string(SourceType type) {
   switch (type) {
     case SourceType::Procedural: return "procedural";
@@ -157,8 +159,8 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     r.only_keys({"type", "shape", "resolution", "seed", "size", "density_scale"});
     d.type = SourceType::Procedural;
     d.procedural.shape = r.string_or("shape", "cloud");
-    if (d.procedural.shape != "cloud" && d.procedural.shape != "plant")
-      r.fail("unknown procedural shape '" + d.procedural.shape + "'; allowed: cloud, plant", "shape");
+    if (d.procedural.shape != "cloud" && d.procedural.shape != "plant" && d.procedural.shape != "box")
+      r.fail("unknown procedural shape '" + d.procedural.shape + "'; allowed: cloud, plant, box", "shape");
     d.procedural.resolution = static_cast<int>(r.integer_or("resolution", 48, 4, 1024));
     d.procedural.seed = static_cast<std::uint64_t>(r.integer_or("seed", 1, 0, (1ll << 53)));
     d.procedural.size = r.number_or("size", 1.0, 1e-9, 1e9, "a positive length");
@@ -281,7 +283,7 @@ LightingSpec read_lighting(const JsonReader& r) {
 }
 
 SolverSpec read_solver(const JsonReader& r) {
-  r.only_keys({"iterations", "tolerance", "max_iterations", "check_interval", "precision"});
+  r.only_keys({"iterations", "tolerance", "max_iterations", "check_interval", "precision", "method"});
   SolverSpec s;
   if (r.has("iterations")) {
     const JsonReader it = r.child("iterations");
@@ -303,6 +305,12 @@ SolverSpec read_solver(const JsonReader& r) {
   if (r.has("tolerance") && !(s.tolerance > 0)) r.fail("tolerance must be > 0", "tolerance");
   s.max_iterations = static_cast<int>(r.integer_or("max_iterations", 0, 1, 100000000));
   s.check_interval = static_cast<int>(r.integer_or("check_interval", 0, 1, 100000));
+  const std::string method = r.string_or("method", "plain");
+  if (method == "plain") s.method = SolverMethod::Plain;
+  else if (method == "bicgstab") s.method = SolverMethod::BiCGStab;
+  else r.fail("unknown solver method '" + method + "'; allowed: plain, bicgstab", "method");
+  if (s.method == SolverMethod::BiCGStab && s.mode != IterationMode::Auto)
+    r.fail("method bicgstab needs iterations \"auto\" (it stops on the error estimate)", "method");
   const std::string prec = r.string_or("precision", "float32");
   if (prec == "float32") s.precision = Precision::Float32;
   else if (prec == "float64") s.precision = Precision::Float64;

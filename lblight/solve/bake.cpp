@@ -6,6 +6,7 @@
 #include <string>
 
 #include "lblight/core/error.h"
+#include "lblight/solve/krylov.h"
 
 namespace lblight {
 namespace {
@@ -21,6 +22,7 @@ std::string gib(std::size_t bytes) {
 }
 
 // How many systems one batch holds: whole solutions where possible, within device memory.
+// Krylov solves take one system at a time (their vectors belong to system 0).
 int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
   const Dims& d = mp.lattice.dims;
   const std::size_t per_system = backend.bytes_per_system(d, opt.precision);
@@ -28,24 +30,137 @@ int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOption
   const std::size_t avail = backend.available_bytes();
   const int channels = static_cast<int>(mp.channels.size());
   const int total = static_cast<int>(mp.systems());
+  const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
   int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, opt.precision, total);
-  want = std::max(1, std::min(want, total));
-  // whole solutions per batch: a multiple of the channel count where possible
-  if (want > channels) want -= want % channels;
+  want = krylov ? 1 : std::max(1, std::min(want, total));
+  if (want > channels) want -= want % channels;  // whole solutions per batch
+  // Krylov vectors: 8 more state-sized arrays (about 4 systems' worth).
+  const std::size_t extra = krylov ? 4 * per_system : 0;
   if (avail > 0) {
     // keep a tenth of the free memory for everything else
-    const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(fixed);
+    const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(fixed + extra);
     const int fit = usable > 0 ? static_cast<int>(usable / static_cast<double>(per_system)) : 0;
     if (fit < 1)
       throw Error(ErrorCategory::Unavailable,
                   "model '" + mp.spec->name + "': a " + std::to_string(d.nx) + "x" + std::to_string(d.ny) + "x" +
-                      std::to_string(d.nz) + " lattice needs " + gib(fixed + per_system) + " on the " +
+                      std::to_string(d.nz) + " lattice needs " + gib(fixed + extra + per_system) + " on the " +
                       backend.name() + " backend but only " + gib(avail) +
                       " is available; lower the resolution or use a machine with more memory");
     want = std::min(want, fit);
   }
   return want;
 }
+
+// How one batch ended.
+struct BatchOutcome {
+  int steps = 0;
+  bool converged = false;
+  std::vector<ConvergenceMonitor> monitors;
+  std::vector<CheckPoint> worst_history;  // the worst system at every check
+  int krylov_iterations = 0;
+  double krylov_residual = 0;
+};
+
+class BatchRunner {
+ public:
+  BatchRunner(const ModelPlan& mp, LatticeSolver& solver, const BakeOptions& opt, BakeObserver& observer,
+              std::vector<const SolutionPlan*> solutions, std::size_t systems)
+      : mp_(mp), solver_(solver), opt_(opt), observer_(observer), solutions_(std::move(solutions)) {
+    out_.monitors.assign(systems, ConvergenceMonitor(opt.precision));
+    t0_ = Clock::now();
+  }
+
+  // Plain iteration x <- T(x) with checks every K steps (spec sec. 5).
+  BatchOutcome plain() {
+    const StepPolicy& pol = mp_.steps;
+    const bool fixed = pol.mode != IterationMode::Auto;
+    const int total = fixed ? pol.fixed_steps : pol.max_steps;
+    while (out_.steps < total) {
+      // Fixed runs put their checks on the last steps (N, N-K, N-2K, ...), so the final error
+      // estimate compares equal intervals.
+      int chunk = pol.check_interval;
+      if (fixed && out_.steps == 0 && total % pol.check_interval != 0) chunk = total % pol.check_interval;
+      chunk = std::min(chunk, total - out_.steps);
+      if (check(chunk, total) && !fixed && out_.steps >= pol.min_steps) {
+        out_.converged = true;
+        break;
+      }
+    }
+    return std::move(out_);
+  }
+
+  // BiCGStab rounds, each verified by plain checks with the same error estimate; a round that
+  // does not verify is followed by one with a ten times tighter residual.
+  BatchOutcome krylov() {
+    const StepPolicy& pol = mp_.steps;
+    double residual_tolerance = 0.1 * pol.tolerance;
+    for (int round = 0; round < 4 && out_.steps < pol.max_steps; ++round) {
+      KrylovProgress iterate;
+      if (observer_.wants_iterates())
+        iterate = [&](const KrylovResult& k) {
+          observer_.inspect({&mp_, solutions_, out_.steps + k.steps, pol.max_steps, ConvergenceMonitor::kUnknown,
+                             seconds_since(t0_), ConvergenceMonitor::kUnknown},
+                            solver_, false);
+        };
+      const KrylovResult kr =
+          bicgstab(solver_, residual_tolerance, pol.max_steps - out_.steps, opt_.cancel, iterate);
+      out_.steps += kr.steps;
+      out_.krylov_iterations += kr.iterations;
+      out_.krylov_residual = kr.residual;
+      // verification: a fresh monitor, a baseline measure, then plain checks
+      out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(opt_.precision));
+      std::vector<Residual> ignore;
+      solver_.measure(ignore);
+      for (int c = 0; c < 6 && out_.steps < pol.max_steps; ++c)
+        if (check(std::min(pol.check_interval, pol.max_steps - out_.steps), pol.max_steps)) {
+          out_.converged = true;
+          return std::move(out_);
+        }
+      residual_tolerance *= 0.1;
+    }
+    return std::move(out_);
+  }
+
+  double seconds() const { return seconds_since(t0_); }
+
+ private:
+  // Runs `chunk` steps and a measure; true when every system's estimate is below tolerance.
+  bool check(int chunk, int planned) {
+    solver_.step(chunk);
+    out_.steps += chunk;
+    solver_.measure(residuals_);
+    const double secs = seconds_since(t0_);
+    double worst = 0, worst_max = 0;
+    CheckPoint worst_point;
+    for (std::size_t s = 0; s < out_.monitors.size(); ++s) {
+      out_.monitors[s].record(out_.steps, chunk, secs, residuals_[s]);
+      if (!residuals_[s].finite)
+        throw Error(ErrorCategory::Internal,
+                    "model '" + mp_.spec->name + "': the iteration produced NaN or Inf at step " +
+                        std::to_string(out_.steps) +
+                        "; this should have been rejected by validation, please report it");
+      const CheckPoint& cp = out_.monitors[s].history().back();
+      if (s == 0 || cp.error_estimate > worst_point.error_estimate || std::isnan(cp.error_estimate)) worst_point = cp;
+      worst = std::max(worst, out_.monitors[s].error_estimate());
+      worst_max = std::max(worst_max, out_.monitors[s].error_estimate_max());
+    }
+    out_.worst_history.push_back(worst_point);
+    const BakeProgress ev{&mp_, solutions_, out_.steps, planned, worst, secs, worst_max};
+    observer_.progress(ev);
+    observer_.inspect(ev, solver_, true);
+    if (opt_.cancel && opt_.cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
+    return worst < mp_.steps.tolerance;
+  }
+
+  const ModelPlan& mp_;
+  LatticeSolver& solver_;
+  const BakeOptions& opt_;
+  BakeObserver& observer_;
+  std::vector<const SolutionPlan*> solutions_;
+  BatchOutcome out_;
+  std::vector<Residual> residuals_;
+  Clock::time_point t0_;
+};
 
 struct SystemRef {
   int solution;  // index into mp.solutions
@@ -55,6 +170,8 @@ struct SystemRef {
 }  // namespace
 
 void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer) {
+  if (mp.steps.method == SolverMethod::BiCGStab && mp.steps.mode != IterationMode::Auto)
+    throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate)");
   const int capacity = batch_capacity(mp, backend, opt);
   SolverOptions so;
   so.precision = opt.precision;
@@ -67,20 +184,18 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     for (int c = 0; c < static_cast<int>(mp.channels.size()); ++c) queue.push_back({s, c});
 
   // Per solution, what its channels have produced so far (channels may run in separate batches
-  // when memory is short).
+  // when memory is short or a Krylov solver takes one system at a time).
   struct Pending {
     std::vector<std::vector<float>> per_channel;
-    int channels_done = 0, iterations = 0;
-    double seconds = 0, error_estimate = 0, error_estimate_max = 0;
+    int channels_done = 0, iterations = 0, krylov_iterations = 0;
+    double seconds = 0, error_estimate = 0, error_estimate_max = 0, krylov_residual = 0;
     bool converged = true;
     std::vector<CheckPoint> history;
   };
   std::vector<Pending> pending(mp.solutions.size());
   for (Pending& p : pending) p.per_channel.resize(mp.channels.size());
-
-  const StepPolicy& pol = mp.steps;
-  const double round_off = ConvergenceMonitor::round_off_for(opt.precision);
   const std::size_t count = mp.lattice.dims.count();
+  const bool fixed = mp.steps.mode != IterationMode::Auto;
 
   for (std::size_t start = 0; start < queue.size();) {
     // Fill the batch, but never split a solution's channels across two batches when they fit.
@@ -95,48 +210,10 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       if (batch_solutions.empty() || batch_solutions.back() != sp) batch_solutions.push_back(sp);
     }
 
-    const auto t0 = Clock::now();
     solver->reset(batch);
-    std::vector<ConvergenceMonitor> monitors(batch.size(), ConvergenceMonitor(round_off));
-    std::vector<Residual> residuals;
-    std::vector<CheckPoint> worst_history;
-    int step = 0;
-    bool converged = false;
-    const bool fixed = pol.mode != IterationMode::Auto;
-    const int total = fixed ? pol.fixed_steps : pol.max_steps;
-    double worst = ConvergenceMonitor::kUnknown;
-    while (step < total) {
-      // Fixed runs put their checks on the last steps (N, N-K, N-2K, ...), so the final error
-      // estimate compares equal intervals.
-      int chunk = pol.check_interval;
-      if (fixed && step == 0 && total % pol.check_interval != 0) chunk = total % pol.check_interval;
-      chunk = std::min(chunk, total - step);
-      solver->step(chunk);
-      step += chunk;
-      solver->measure(residuals);
-      const double secs = seconds_since(t0);
-      worst = 0;
-      CheckPoint worst_point;
-      for (std::size_t s = 0; s < batch.size(); ++s) {
-        monitors[s].record(step, chunk, secs, residuals[s]);
-        if (!residuals[s].finite)
-          throw Error(ErrorCategory::Internal,
-                      "model '" + mp.spec->name + "': the iteration produced NaN or Inf at step " +
-                          std::to_string(step) + "; this should have been rejected by validation, please report it");
-        const CheckPoint& cp = monitors[s].history().back();
-        if (s == 0 || cp.error_estimate > worst_point.error_estimate || std::isnan(cp.error_estimate)) worst_point = cp;
-        worst = std::max(worst, monitors[s].error_estimate());
-      }
-      worst_history.push_back(worst_point);
-      BakeProgress ev{&mp, batch_solutions, step, total, worst, secs};
-      observer.progress(ev);
-      if (opt.cancel && opt.cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
-      if (!fixed && step >= pol.min_steps && worst < pol.tolerance) {
-        converged = true;
-        break;
-      }
-    }
-    const double batch_seconds = seconds_since(t0);
+    BatchRunner runner(mp, *solver, opt, observer, batch_solutions, batch.size());
+    BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov() : runner.plain();
+    const double batch_seconds = runner.seconds();
 
     // Collect each system's totals; a solution is done once all its channels are.
     for (std::size_t s = 0; s < batch.size(); ++s) {
@@ -146,12 +223,15 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       buf.resize(count);
       solver->read_totals(static_cast<int>(s), buf.data());
       ++p.channels_done;
-      p.iterations = std::max(p.iterations, step);
+      p.iterations = std::max(p.iterations, outcome.steps);
+      p.krylov_iterations = std::max(p.krylov_iterations, outcome.krylov_iterations);
+      p.krylov_residual = std::max(p.krylov_residual, outcome.krylov_residual);
       p.seconds += batch_seconds / static_cast<double>(batch.size());
-      p.error_estimate = std::max(p.error_estimate, monitors[s].error_estimate());
-      p.error_estimate_max = std::max(p.error_estimate_max, monitors[s].error_estimate_max());
-      p.converged = p.converged && converged;
-      if (p.history.empty() || monitors[s].error_estimate() >= p.error_estimate) p.history = worst_history;
+      const double estimate = outcome.monitors[s].error_estimate();
+      if (p.history.empty() || estimate >= p.error_estimate) p.history = outcome.worst_history;
+      p.error_estimate = std::max(p.error_estimate, estimate);
+      p.error_estimate_max = std::max(p.error_estimate_max, outcome.monitors[s].error_estimate_max());
+      p.converged = p.converged && outcome.converged;
       if (p.channels_done < static_cast<int>(mp.channels.size())) continue;
       SolutionResult r;
       r.plan = mp.solutions[static_cast<std::size_t>(sol)];
@@ -160,6 +240,8 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       r.error_estimate = p.error_estimate;
       r.error_estimate_max = p.error_estimate_max;
       r.converged = !fixed && p.converged;
+      r.krylov_iterations = p.krylov_iterations;
+      r.krylov_residual = p.krylov_residual;
       r.history = std::move(p.history);
       for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
       p = Pending{};

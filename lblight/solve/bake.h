@@ -19,6 +19,8 @@ struct SolutionResult {
   double error_estimate = 0;   // relative L2, the worst channel (inf = not estimable)
   double error_estimate_max = 0;  // relative max norm, the worst channel
   bool converged = false;      // Auto: reached the tolerance; Fixed/Paper: not applicable (false)
+  int krylov_iterations = 0;   // BiCGStab iterations (method bicgstab)
+  double krylov_residual = 0;  // its final relative residual
   std::vector<CheckPoint> history;                    // worst channel at every check
   std::array<std::vector<float>, 3> totals;           // R, G, B per lattice node
 };
@@ -30,6 +32,7 @@ struct BakeProgress {
   int planned_steps = 0;       // Fixed/Paper: exact; Auto: the cap
   double error_estimate = 0;
   double seconds = 0;
+  double error_estimate_max = 0;  // max-norm estimate (worst system)
 };
 
 class BakeObserver {
@@ -39,6 +42,12 @@ class BakeObserver {
   virtual void progress(const BakeProgress&) {}
   // The result may be moved from.
   virtual void solution_done(const ModelPlan& model, SolutionResult& result) = 0;
+
+  // Reports only: look at the solver after every convergence check (totals fresh: measured is
+  // true) and, when wants_iterates(), after every Krylov iteration (the state is the iterate;
+  // call measure() before reading totals). Time spent here should be subtracted by the observer.
+  virtual bool wants_iterates() const { return false; }
+  virtual void inspect(const BakeProgress&, LatticeSolver&, bool /*measured*/) {}
 };
 
 struct BakeOptions {

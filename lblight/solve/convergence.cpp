@@ -5,6 +5,14 @@
 
 namespace lblight {
 
+double ConvergenceMonitor::unit_roundoff(Precision p) {
+  switch (p) {
+    case Precision::Float64: return 1.1e-16;
+    case Precision::Float16: return 4.9e-4;
+    default: return 6.0e-8;
+  }
+}
+
 double ConvergenceMonitor::round_off_for(Precision p) {
   switch (p) {
     case Precision::Float64: return 1e-13;
@@ -30,7 +38,7 @@ double log_slope(const std::vector<double>& ys, std::size_t n) {
 }
 }  // namespace
 
-double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floor) const {
+double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floor, double* ratio) const {
   // Trailing checks with the same interval as the last one (ratios need equal intervals).
   std::vector<double> ys;
   const int interval = history_.back().interval;
@@ -52,6 +60,7 @@ double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floo
   // the ratio climbs toward the slowest one and any extrapolation would be too optimistic.
   const double gap = 1.0 - r;
   if (std::fabs(r1 - r2) > 0.1 * gap || std::fabs(r2 - r3) > 0.2 * gap) return kUnknown;
+  if (ratio) *ratio = r;
   // Factor 2: even a settled ratio keeps creeping up while the last fast modes fade.
   return std::max(2.0 * now * r / gap, floor);
 }
@@ -67,8 +76,12 @@ void ConvergenceMonitor::record(int step, int interval, double seconds, const Re
   const double deficit_max = r.total_max > 0 ? r.deficit_max / r.total_max : 0.0;
   if (!r.finite) c.change_l2 = c.change_max = kUnknown;
   history_.push_back(c);
-  history_.back().error_estimate = tail_estimate(&CheckPoint::change_l2, c.deficit_l2);
-  history_.back().error_estimate_max = tail_estimate(&CheckPoint::change_max, deficit_max);
+  // The rounding floor: 5 u per step, amplified by 1 / (1 - q) (header comment).
+  const double rounding = settled_q_ >= 0 ? 5.0 * unit_ / std::max(1e-12, 1.0 - settled_q_) : 0.0;
+  double ratio = -1;
+  history_.back().error_estimate = tail_estimate(&CheckPoint::change_l2, std::max(c.deficit_l2, rounding), &ratio);
+  history_.back().error_estimate_max = tail_estimate(&CheckPoint::change_max, std::max(deficit_max, rounding), nullptr);
+  if (ratio > 0 && interval > 0) settled_q_ = std::pow(ratio, 1.0 / interval);
 }
 
 }  // namespace lblight

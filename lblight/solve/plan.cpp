@@ -139,6 +139,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
     const int longest = mp.lattice.dims.longest();
     StepPolicy& st = mp.steps;
     st.mode = ov.mode.value_or(scene.solver.mode);
+    st.method = ov.method.value_or(scene.solver.method);
     st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
     st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
                                                         : std::clamp((longest + 2) / 4, 4, 16);

@@ -21,6 +21,7 @@ struct PlanOverrides {
   int iterations = 0;                         //   with mode Fixed
   std::optional<double> tolerance;            // --tolerance
   std::optional<Precision> precision;
+  std::optional<SolverMethod> method;         // --method
 };
 
 struct SolutionPlan {
@@ -32,6 +33,7 @@ struct SolutionPlan {
 
 struct StepPolicy {
   IterationMode mode = IterationMode::Auto;
+  SolverMethod method = SolverMethod::Plain;
   int fixed_steps = 0;      // Fixed and Paper
   int min_steps = 0;        // Auto: never stop before light has crossed the lattice
   int max_steps = 0;        // Auto: give up (not converged) after this many

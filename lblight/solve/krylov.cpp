@@ -1,0 +1,91 @@
+#include "lblight/solve/krylov.h"
+
+#include <cmath>
+
+#include "lblight/core/error.h"
+
+namespace lblight {
+
+namespace {
+enum Vec { kX, kR, kRhat, kP, kV, kS, kT, kB, kCount };
+}  // namespace
+
+KrylovResult bicgstab(LatticeSolver& s, double tolerance, int max_steps, const std::atomic<bool>* cancel,
+                      const KrylovProgress& progress) {
+  KrylovResult out;
+  s.vectors_reserve(kCount);
+  s.vector_step_offset(kB);
+  s.vector_from_state(kX);
+  // (I - A) y into z: z = A y, then z = y - z.
+  auto apply_m = [&](int y, int z) {
+    s.vector_apply(y, z);
+    s.vector_axpby(1.0, y, -1.0, z);
+    ++out.steps;
+  };
+  const double bnorm = std::sqrt(s.vector_dot(kB, kB));
+  if (bnorm == 0.0) {  // no light enters: the steady state is 0
+    s.vector_axpby(0.0, kB, 0.0, kX);
+    s.vector_to_state(kX);
+    out.reached = true;
+    return out;
+  }
+  // r = b - (I - A) x
+  apply_m(kX, kR);
+  s.vector_axpby(1.0, kB, -1.0, kR);
+  double rnorm = std::sqrt(s.vector_dot(kR, kR));
+  double rho = 1, alpha = 1, omega = 1;
+  bool restart = true;
+  while (rnorm / bnorm > tolerance && out.steps + 2 <= max_steps) {
+    if (cancel && cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
+    if (restart) {  // (re)start with the shadow residual equal to the residual
+      s.vector_axpby(1.0, kR, 0.0, kRhat);
+      s.vector_axpby(0.0, kR, 0.0, kP);
+      s.vector_axpby(0.0, kR, 0.0, kV);
+      rho = alpha = omega = 1;
+      restart = false;
+    }
+    const double rho_new = s.vector_dot(kRhat, kR);
+    if (std::fabs(rho_new) < 1e-30 * bnorm * bnorm) {
+      restart = true;
+      continue;
+    }
+    const double beta = (rho_new / rho) * (alpha / omega);
+    // p = r + beta (p - omega v)
+    s.vector_axpby(-omega, kV, 1.0, kP);
+    s.vector_axpby(1.0, kR, beta, kP);
+    apply_m(kP, kV);
+    const double rv = s.vector_dot(kRhat, kV);
+    if (rv == 0.0 || !std::isfinite(rv)) {
+      restart = true;
+      continue;
+    }
+    alpha = rho_new / rv;
+    // s = r - alpha v
+    s.vector_axpby(1.0, kR, 0.0, kS);
+    s.vector_axpby(-alpha, kV, 1.0, kS);
+    apply_m(kS, kT);
+    const double tt = s.vector_dot(kT, kT);
+    omega = tt > 0 ? s.vector_dot(kT, kS) / tt : 0.0;
+    // x += alpha p + omega s;  r = s - omega t
+    s.vector_axpby(alpha, kP, 1.0, kX);
+    s.vector_axpby(omega, kS, 1.0, kX);
+    s.vector_axpby(1.0, kS, 0.0, kR);
+    s.vector_axpby(-omega, kT, 1.0, kR);
+    rho = rho_new;
+    rnorm = std::sqrt(s.vector_dot(kR, kR));
+    ++out.iterations;
+    if (!std::isfinite(rnorm)) throw Error(ErrorCategory::Internal, "BiCGStab diverged (non-finite residual)");
+    if (omega == 0.0) restart = true;
+    if (progress) {
+      out.residual = rnorm / bnorm;
+      s.vector_to_state(kX);
+      progress(out);
+    }
+  }
+  out.residual = rnorm / bnorm;
+  out.reached = out.residual <= tolerance;
+  s.vector_to_state(kX);
+  return out;
+}
+
+}  // namespace lblight
