@@ -73,7 +73,7 @@ LatticeGeometry uniform_lattice(Dims d, float rho) {
   return g;
 }
 
-LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsigned seed) {
+LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsigned seed, float min_rho) {
   LatticeGeometry g = uniform_lattice(d, 0.0f);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -83,7 +83,7 @@ LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsi
       for (int x = 1; x < d.nx - 1; ++x) {
         const std::size_t i = d.index(x, y, z);
         const float r = u(rng);
-        g.density[i] = r < 0.2f ? 0.0f : max_rho * u(rng);
+        g.density[i] = r < 0.2f ? 0.0f : min_rho + (max_rho - min_rho) * u(rng);
         if (u(rng) < wood_fraction && g.density[i] > 0) {
           g.material[i] = 1;
           wood = true;

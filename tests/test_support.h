@@ -31,8 +31,9 @@ class ReferenceLattice {
 };
 
 LatticeGeometry uniform_lattice(Dims d, float rho);  // boundary layer empty
-// Random densities in [0, max_rho] on the interior, wood (material 1) where `wood_fraction` hits.
-LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsigned seed);
+// Random densities in [min_rho, max_rho] on the interior (a fifth of the nodes empty), wood
+// (material 1) where `wood_fraction` hits.
+LatticeGeometry random_lattice(Dims d, float max_rho, double wood_fraction, unsigned seed, float min_rho = 0.0f);
 
 ChannelMaterials channel(const OpticalParams& medium, bool absorbs,
                          const OpticalParams& wood = {0.1, 0.9, -1.0}, bool wood_absorbs = false);

@@ -1,0 +1,110 @@
+// The error estimate (solve/convergence.h) and the BiCGStab solver (solve/krylov.h).
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "lblight/lattice/sun.h"
+#include "lblight/solve/convergence.h"
+#include "lblight/solve/krylov.h"
+#include "tests/test_support.h"
+
+using namespace lblight;
+using namespace lblight::test;
+
+namespace {
+Residual change(double rel) {
+  Residual r;
+  r.diff_sq = rel * rel;
+  r.total_sq = 1.0;
+  r.diff_max = rel;
+  r.total_max = 1.0;
+  return r;
+}
+}  // namespace
+
+TEST_CASE("A geometric sequence of changes gives the geometric tail, doubled", "[convergence]") {
+  ConvergenceMonitor m(Precision::Float64);
+  double c = 1e-2;
+  for (int k = 1; k <= 8; ++k, c *= 0.5) m.record(10 * k, 10, 0, change(c));
+  // last change 1e-2 * 0.5^7, ratio 0.5: remaining = change * r / (1 - r) = change
+  CHECK(m.error_estimate() == Approx(2.0 * 1e-2 * std::pow(0.5, 7)).epsilon(1e-9));
+}
+
+TEST_CASE("No estimate while the ratio is still climbing or above 1", "[convergence]") {
+  ConvergenceMonitor m(Precision::Float64);
+  const double changes[] = {1.0, 0.7, 0.57, 0.42, 0.00114};  // light front leaving the lattice
+  int step = 0;
+  for (double c : changes) m.record(step += 13, 13, 0, change(c));
+  CHECK(std::isinf(m.error_estimate()));
+  ConvergenceMonitor grow(Precision::Float64);
+  for (int k = 1; k <= 6; ++k) grow.record(10 * k, 10, 0, change(1e-3 * k));
+  CHECK(std::isinf(grow.error_estimate()));
+}
+
+TEST_CASE("The estimate never drops below the f_0 reservoir deficit or the rounding floor", "[convergence]") {
+  ConvergenceMonitor m(Precision::Float32);
+  double c = 1e-3;
+  for (int k = 1; k <= 8; ++k, c *= 0.5) {
+    Residual r = change(c);
+    r.deficit_sq = 1e-6;  // relative deficit 1e-3, far above the tail
+    m.record(10 * k, 10, 0, r);
+  }
+  CHECK(m.error_estimate() >= 1e-3);
+  // float32, per-step contraction q = 0.99 settled, then changes at the noise floor:
+  ConvergenceMonitor f(Precision::Float32);
+  c = 1e-2;
+  const double r10 = std::pow(0.99, 10);
+  int step = 0;
+  for (int k = 0; k < 8; ++k, c *= r10) f.record(step += 10, 10, 0, change(c));
+  f.record(step += 10, 10, 0, change(1e-7));
+  CHECK(f.error_estimate() >= 5 * 6e-8 / (1 - 0.99) * 0.99);
+}
+
+TEST_CASE("BiCGStab reaches the plain iteration's fixed point", "[krylov]") {
+  // densities kept away from 0: a nearly empty node that keeps f_0 relaxes at rate rho per step,
+  // which neither method reaches in a test's time (test_extreme.cpp covers that case)
+  const LatticeGeometry g = random_lattice({17, 15, 13}, 0.95f, 0.15, 31, 0.3f);
+  const auto backend = cpu_backend();
+  for (bool absorbs : {true, false}) {
+    const auto ch = channel({absorbs ? 0.109 : 0.008, absorbs ? 0.891 : 0.792, absorbs ? -0.12 : 0.0}, absorbs,
+                            {0.109, 0.891, -1.0}, false);
+    // plain: many steps in float64
+    const auto plain = solve_totals_f64(*backend, g, {ch}, system_for(0, base_boundary(3)), 6000);
+    auto solver = backend->create(g, {ch}, {Precision::Float64, 1});
+    solver->reset({system_for(0, base_boundary(3))});
+    const KrylovResult kr = bicgstab(*solver, 1e-12, 5000);
+    INFO("absorbs " << absorbs << ": " << kr.iterations << " iterations, " << kr.steps << " steps");
+    CHECK(kr.reached);
+    CHECK(kr.steps < 600);
+    std::vector<double> f;
+    solver->read_state(0, f);
+    const std::size_t n = g.dims.count();
+    std::vector<double> totals(n, 0.0);
+    for (int m = 0; m < 19; ++m)
+      for (std::size_t i = 0; i < n; ++i) totals[i] += f[m * n + i];
+    CHECK(max_relative_difference(plain, totals, 1e-3) < 1e-8);
+  }
+}
+
+TEST_CASE("BiCGStab in float32 reaches 1e-4 on a dense cube in a fraction of the plain steps", "[krylov]") {
+  // spec sec. 5: density 1, cloud parameters with g = 0; plain iteration needs ~33N steps
+  const LatticeGeometry g = uniform_lattice({26, 26, 26}, 1.0f);
+  const auto ch = channel({0.008, 0.792, 0.0}, false);
+  const auto backend = cpu_backend();
+  const auto truth = solve_totals_f64(*backend, g, {ch}, system_for(0, base_boundary(6)), 8000);
+  auto solver = backend->create(g, {ch}, {Precision::Float32, 1});
+  solver->reset({system_for(0, base_boundary(6))});
+  const KrylovResult kr = bicgstab(*solver, 1e-5, 2000);
+  std::vector<Residual> r;
+  solver->measure(r);
+  std::vector<float> got(g.dims.count());
+  solver->read_totals(0, got.data());
+  double e2 = 0, t2 = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    e2 += (got[i] - truth[i]) * (got[i] - truth[i]);
+    t2 += truth[i] * truth[i];
+  }
+  INFO(kr.steps << " steps, relative L2 error " << std::sqrt(e2 / t2));
+  CHECK(std::sqrt(e2 / t2) < 1e-4);
+  CHECK(kr.steps < 33 * 26 / 4);
+}
