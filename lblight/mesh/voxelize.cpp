@@ -289,6 +289,8 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
   const int T[3] = {(n[0] + C - 1) / C, (n[1] + C - 1) / C, (n[2] + C - 1) / C};
   const std::size_t tiles3 = static_cast<std::size_t>(T[0]) * T[1] * T[2];
   const std::size_t tiles2 = static_cast<std::size_t>(T[0]) * T[1];
+  if (tiles3 >= (std::size_t{1} << 31))
+    throw Error(ErrorCategory::Unavailable, "voxelize: the fine grid is too large (more than 2^31 tiles)", where);
   const bool fill = opt.fill != FillMode::None;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs, pairs2;
   for (std::size_t i = 0; i < prep.size(); ++i) {
