@@ -25,5 +25,6 @@ Command add_validate_command(CLI::App& app, const GlobalOptions& global);
 Command add_inspect_command(CLI::App& app, const GlobalOptions& global);
 Command add_bench_command(CLI::App& app, const GlobalOptions& global);
 Command add_report_command(CLI::App& app, const GlobalOptions& global);
+Command add_voxelize_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace lblight::cli

@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
       cli::add_inspect_command(app, global),
       cli::add_bench_command(app, global),
       cli::add_report_command(app, global),
+      cli::add_voxelize_command(app, global),
   };
 
   try {

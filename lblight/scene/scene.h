@@ -40,6 +40,7 @@ struct MeshSource {
   std::vector<std::string> leaf_patterns, wood_patterns;  // empty = defaults
   bool has_bounds = false;
   std::array<double, 3> bounds_min{}, bounds_max{};
+  std::string fill = "none";  // none | parity | winding (closed solids; docs/voxelization.md)
 };
 
 struct DensitySpec {

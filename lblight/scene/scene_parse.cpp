@@ -172,7 +172,7 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     d.vdb.grid = r.string_or("grid", "density");
     d.vdb.wood_grid = r.string_or("wood_grid", "");
   } else if (type == "mesh") {
-    r.only_keys({"type", "path", "resolution", "supersample", "leaf_patterns", "wood_patterns", "bounds",
+    r.only_keys({"type", "path", "resolution", "supersample", "leaf_patterns", "wood_patterns", "bounds", "fill",
                  "density_scale"});
     d.type = SourceType::Mesh;
     const std::filesystem::path p = r.string("path");
@@ -204,6 +204,9 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
         if (!(d.mesh.bounds_max[i] > d.mesh.bounds_min[i])) b.fail("bounds max must exceed min on every axis");
       d.mesh.has_bounds = true;
     }
+    d.mesh.fill = r.string_or("fill", "none");
+    if (d.mesh.fill != "none" && d.mesh.fill != "parity" && d.mesh.fill != "winding")
+      r.fail("unknown fill mode '" + d.mesh.fill + "'; allowed: none, parity, winding", "fill");
   } else {
     r.fail("unknown density type '" + type + "'; allowed: procedural, vdb, mesh", "type");
   }
