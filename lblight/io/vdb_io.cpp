@@ -93,6 +93,8 @@ nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
   return j;
 }
 
+// lblight arrays are x fastest, index (z * ny + y) * nx + x: OpenVDB's LayoutXYZ (its LayoutZYX,
+// the Dense default, is z fastest and would scramble every grid for other OpenVDB readers).
 openvdb::CoordBBox frame_bbox(const DenseFrame& f) {
   const openvdb::Coord lo(f.index_min[0], f.index_min[1], f.index_min[2]);
   return {lo, lo.offsetBy(f.dims.nx - 1, f.dims.ny - 1, f.dims.nz - 1)};
@@ -127,7 +129,7 @@ ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
   g.index_to_world = from_vdb_transform(grid->transform(), "grid '" + src.grid + "'", where);
   g.density.assign(g.dims.count(), 0.0f);
   g.material.assign(g.dims.count(), kMaterialMedium);
-  openvdb::tools::Dense<float, openvdb::tools::LayoutZYX> dense(bbox, g.density.data());
+  openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(bbox, g.density.data());
   openvdb::tools::copyToDense(*grid, dense);
 
   if (!src.wood_grid.empty()) {
@@ -136,11 +138,11 @@ ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
       throw_invalid("wood grid '" + src.wood_grid + "' does not share the transform of density grid '" + src.grid + "'",
                     where);
     std::vector<float> wood(g.dims.count(), 0.0f);
-    openvdb::tools::Dense<float, openvdb::tools::LayoutZYX> wdense(bbox, wood.data());
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> wdense(bbox, wood.data());
     if (auto wf = openvdb::gridPtrCast<openvdb::FloatGrid>(wbase)) openvdb::tools::copyToDense(*wf, wdense);
     else if (auto wi = openvdb::gridPtrCast<openvdb::Int32Grid>(wbase)) {
       std::vector<int> tmp(g.dims.count(), 0);
-      openvdb::tools::Dense<int, openvdb::tools::LayoutZYX> idense(bbox, tmp.data());
+      openvdb::tools::Dense<int, openvdb::tools::LayoutXYZ> idense(bbox, tmp.data());
       openvdb::tools::copyToDense(*wi, idense);
       for (std::size_t i = 0; i < tmp.size(); ++i) wood[i] = static_cast<float>(tmp[i]);
     } else if (auto wb = openvdb::gridPtrCast<openvdb::BoolGrid>(wbase)) {
@@ -171,7 +173,7 @@ void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const
     openvdb::GridBase::Ptr g;
     if (spec.scalar) {
       auto fg = openvdb::FloatGrid::create(0.0f);
-      openvdb::tools::Dense<const float, openvdb::tools::LayoutZYX> dense(bbox, spec.scalar->data());
+      openvdb::tools::Dense<const float, openvdb::tools::LayoutXYZ> dense(bbox, spec.scalar->data());
       openvdb::tools::copyFromDense(dense, *fg, 0.0f);
       if (spec.fog_volume) fg->setGridClass(openvdb::GRID_FOG_VOLUME);
       g = fg;
@@ -180,7 +182,7 @@ void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const
       std::vector<openvdb::Vec3s> interleaved(frame.dims.count());
       for (std::size_t i = 0; i < interleaved.size(); ++i)
         interleaved[i] = openvdb::Vec3s((*spec.rgb)[0][i], (*spec.rgb)[1][i], (*spec.rgb)[2][i]);
-      openvdb::tools::Dense<const openvdb::Vec3s, openvdb::tools::LayoutZYX> dense(bbox, interleaved.data());
+      openvdb::tools::Dense<const openvdb::Vec3s, openvdb::tools::LayoutXYZ> dense(bbox, interleaved.data());
       openvdb::tools::copyFromDense(dense, *vg, openvdb::Vec3s(0.0f));
       vg->setVectorType(openvdb::VEC_INVARIANT);
       g = vg;
@@ -226,11 +228,11 @@ DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::st
   const std::size_t n = out.frame.dims.count();
   if (auto fg = openvdb::gridPtrCast<openvdb::FloatGrid>(base)) {
     out.values[0].assign(n, 0.0f);
-    openvdb::tools::Dense<float, openvdb::tools::LayoutZYX> dense(bbox, out.values[0].data());
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(bbox, out.values[0].data());
     openvdb::tools::copyToDense(*fg, dense);
   } else if (auto vg = openvdb::gridPtrCast<openvdb::Vec3SGrid>(base)) {
     std::vector<openvdb::Vec3s> tmp(n);
-    openvdb::tools::Dense<openvdb::Vec3s, openvdb::tools::LayoutZYX> dense(bbox, tmp.data());
+    openvdb::tools::Dense<openvdb::Vec3s, openvdb::tools::LayoutXYZ> dense(bbox, tmp.data());
     openvdb::tools::copyToDense(*vg, dense);
     for (int c = 0; c < 3; ++c) {
       out.values[c].resize(n);
