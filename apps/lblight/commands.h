@@ -24,5 +24,7 @@ Command add_bake_command(CLI::App& app, const GlobalOptions& global);
 Command add_validate_command(CLI::App& app, const GlobalOptions& global);
 Command add_inspect_command(CLI::App& app, const GlobalOptions& global);
 Command add_bench_command(CLI::App& app, const GlobalOptions& global);
+Command add_compress_command(CLI::App& app, const GlobalOptions& global);
+Command add_decompress_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace lblight::cli

@@ -34,6 +34,8 @@ int main(int argc, char** argv) {
       cli::add_validate_command(app, global),
       cli::add_inspect_command(app, global),
       cli::add_bench_command(app, global),
+      cli::add_compress_command(app, global),
+      cli::add_decompress_command(app, global),
   };
 
   try {
