@@ -276,3 +276,50 @@ TEST_CASE("Fuzz seed corpus is valid and up to date", "[lbh][reader]") {
     CHECK(s.open_file((dir / name).string()) == lbh::Status::Ok);
   }
 }
+
+#ifdef LBH_PYTHON
+// scripts/lbh_decode.py is a second decoder written from docs/lbh-format.md alone; it must agree
+// with the C++ reader on every decoded node and on samples anywhere (outside the lattice too).
+TEST_CASE("An independent decoder written from the format document agrees with the reader", "[lbh][reader]") {
+  TempDir tmp;
+  const std::string script = std::string(LBLIGHT_SOURCE_DIR) + "/scripts/lbh_decode.py";
+  for (const auto& [name, bytes] : seed_streams()) {
+    INFO(name);
+    write_text(tmp / name, bytes);
+    lbh::Stream s;
+    REQUIRE(s.open_memory(bytes.data(), bytes.size()) == lbh::Status::Ok);
+    const std::string run = "'" + std::string(LBH_PYTHON) + "' '" + script + "' '" + (tmp / name).string() + "' ";
+    REQUIRE(std::system((run + "--dump > '" + (tmp / "dump.json").string() + "'").c_str()) == 0);
+    const nlohmann::json dump = nlohmann::json::parse(read_text(tmp / "dump.json"));
+    std::string pts;
+    std::vector<std::array<float, 3>> p;
+    const lbh::Lattice& L = s.lattice();
+    for (int i = 0; i < 40; ++i) {
+      const std::array<float, 3> q = {L.index_min[0] - 1.5f + 0.37f * i, L.index_min[1] + 0.113f * i * (i % 3),
+                                      L.index_min[2] + 5.0f - 0.29f * i};
+      p.push_back(q);
+      for (float c : q) pts += std::to_string(c) + " ";
+    }
+    REQUIRE(std::system((run + "--sample " + pts + "> '" + (tmp / "samples.json").string() + "'").c_str()) == 0);
+    const nlohmann::json samples = nlohmann::json::parse(read_text(tmp / "samples.json"));
+    for (std::size_t slot = 0; slot < s.solution_count(); ++slot) {
+      const std::string grid = s.info(slot).name;
+      const std::vector<float> dec = s.decode_all(slot);
+      const auto& py = dump.at(grid);
+      REQUIRE(py.size() * 3 == dec.size());
+      for (std::size_t i = 0; i < py.size(); ++i)
+        for (int c = 0; c < 3; ++c) CHECK(py[i][c].get<double>() == Approx(dec[3 * i + c]).margin(1e-6));
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        const lbh::Rgb v = s.sample_index(slot, p[i][0], p[i][1], p[i][2]);
+        const auto& q = samples.at(grid).at(i);
+        CHECK(q[0].get<double>() == Approx(v.r).margin(1e-5));
+        CHECK(q[1].get<double>() == Approx(v.g).margin(1e-5));
+        CHECK(q[2].get<double>() == Approx(v.b).margin(1e-5));
+      }
+    }
+  }
+  write_text(tmp / "bad.lbh", seed_streams()[1].second.substr(0, 700));
+  CHECK(std::system(("'" + std::string(LBH_PYTHON) + "' '" + script + "' '" + (tmp / "bad.lbh").string() + "' 2>/dev/null")
+                        .c_str()) != 0);
+}
+#endif
