@@ -169,6 +169,23 @@ TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics
   }
 }
 
+TEST_CASE("A static bake's light grid is compressed as a non-base solution", "[lbh][cli]") {
+  TempDir tmp;
+  write_text(tmp / "s.json", R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
+      "resolution": 8}, "material": "cloud"}], "lighting": {"mode": "static", "sun": {"direction": [0, 0, 1]}},
+      "solver": {"iterations": 8}, "output": {"lbh": true}})");
+  const CliResult r = run_cli("bake s.json -o out", tmp.path());
+  INFO(r.err);
+  REQUIRE(r.exit_code == 0);
+  lbh::Stream s;
+  REQUIRE(s.open_file((tmp / "out" / "c.lbh").string()) == lbh::Status::Ok);
+  REQUIRE(s.solution_count() == 1);
+  CHECK(s.info(0).name == "light");
+  CHECK(s.info(0).index == -1);
+  CHECK(s.info(0).threshold == Approx(0.01 * s.info(0).max_abs_value).epsilon(1e-6));
+  CHECK(s.find(0) == -1);
+}
+
 TEST_CASE("compress, decompress and inspect .lbh from the command line", "[lbh][cli]") {
   TempDir tmp;
   write_text(tmp / "scene.json", kLbhScene);
