@@ -78,3 +78,23 @@ TEST_CASE("Output .vdb holds density, brown and B grids with transform and metad
   CHECK(manifest["models"][0]["solutions"].size() == 3);
   CHECK(manifest["scene"]["hash"] == scene.hash);
 }
+
+TEST_CASE("Dense arrays are x fastest in OpenVDB index space", "[io]") {
+  // One non-zero node at lattice (4, 0, 0) of a 5x3x2 lattice: OpenVDB must see it at index (4, 0, 0)
+  // (plus index_min), whatever dense layout the I/O uses internally.
+  TempDir tmp;
+  DenseFrame frame{{5, 3, 2}, {10, 20, 30}, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}};
+  std::vector<float> scalar(frame.dims.count(), 0.0f);
+  scalar[frame.dims.index(4, 0, 0)] = 1.0f;
+  std::array<std::vector<float>, 3> rgb;
+  for (auto& c : rgb) c.assign(frame.dims.count(), 0.0f);
+  rgb[1][frame.dims.index(1, 2, 1)] = 2.0f;
+  write_vdb(tmp / "o.vdb", frame, {{"s", &scalar, nullptr, false, {}}, {"v", nullptr, &rgb, false, {}}}, {});
+  // Without lattice metadata the reader takes the active bounding box: exactly the one voxel.
+  const DenseGridIn s = read_vdb_grid_dense(tmp / "o.vdb", "s");
+  CHECK(s.frame.index_min == std::array<int, 3>{14, 20, 30});
+  CHECK(s.frame.dims == Dims{1, 1, 1});
+  const DenseGridIn v = read_vdb_grid_dense(tmp / "o.vdb", "v");
+  CHECK(v.frame.index_min == std::array<int, 3>{11, 22, 31});
+  CHECK(v.values[1].at(0) == 2.0f);
+}

@@ -11,6 +11,7 @@
 #include "lblight/core/error.h"
 #include "lblight/io/bake_output.h"
 #include "lblight/io/vdb_io.h"
+#include "readers/lbh/lbh_reader.h"
 
 namespace fs = std::filesystem;
 
@@ -75,6 +76,89 @@ std::string vdb_text(const nlohmann::json& j) {
   return s.str();
 }
 
+// .lbh: validated by the reader library itself (the same checks a renderer runs).
+nlohmann::json lbh_summary(const fs::path& file) {
+  lbh::Stream s;
+  if (const lbh::Status st = s.open_file(file.string()); st != lbh::Status::Ok) {
+    if (st == lbh::Status::IoError) throw_io(s.error());
+    throw_invalid(s.error());
+  }
+  const lbh::Header& h = s.header();
+  nlohmann::json j;
+  j["kind"] = "lbh";
+  j["file"] = file.string();
+  j["version"] = h.version;
+  j["file_bytes"] = h.file_bytes;
+  j["dims"] = {h.dims[0], h.dims[1], h.dims[2]};
+  j["index_min"] = {h.index_min[0], h.index_min[1], h.index_min[2]};
+  j["sub_blocks"] = {h.blocks[0], h.blocks[1], h.blocks[2]};
+  j["index_to_world"] = std::vector<double>(h.index_to_world, h.index_to_world + 16);
+  const double nodes = static_cast<double>(h.dims[0]) * h.dims[1] * h.dims[2];
+  double float_bytes = 0, stream_bytes = 0;
+  j["solutions"] = nlohmann::json::array();
+  for (std::size_t i = 0; i < s.solution_count(); ++i) {
+    const lbh::SolutionInfo& in = s.info(i);
+    nlohmann::json e;
+    e["name"] = in.name;
+    e["index"] = in.index;
+    e["direction"] = {in.direction[0], in.direction[1], in.direction[2]};
+    e["threshold"] = in.threshold;
+    e["threshold_requested"] = {{"value", in.threshold_param}, {"relative", in.threshold_mode == 1}};
+    e["max_abs_value"] = in.max_abs_value;
+    e["blocks"] = in.block_count;
+    e["fast_path_blocks"] = in.fast_blocks;
+    e["coefficients"] = in.coeff_count;
+    e["compressed_bytes"] = in.stream_bytes();
+    e["float_rgb_bytes"] = nodes * 12;
+    e["ratio"] = nodes * 12 / static_cast<double>(in.stream_bytes());
+    e["max_abs_error"] = in.max_abs_error;
+    e["rms_error"] = in.rms_error;
+    float_bytes += nodes * 12;
+    stream_bytes += static_cast<double>(in.stream_bytes());
+    j["solutions"].push_back(e);
+  }
+  j["float_rgb_bytes"] = float_bytes;
+  j["compressed_bytes"] = stream_bytes;
+  j["ratio"] = float_bytes / stream_bytes;
+  j["file_ratio"] = float_bytes / static_cast<double>(h.file_bytes);
+  return j;
+}
+
+std::string lbh_text(const nlohmann::json& j) {
+  std::ostringstream s;
+  const auto& d = j["dims"];
+  const auto& b = j["sub_blocks"];
+  s << j["file"].get<std::string>() << ": .lbh v" << j["version"].get<int>() << ", " << d[0] << "x" << d[1] << "x"
+    << d[2] << " lattice, " << b[0] << "x" << b[1] << "x" << b[2] << " sub-blocks, " << j["solutions"].size()
+    << " solution(s), " << format_bytes(j["file_bytes"].get<double>()) << "\n";
+  auto ratio = [](double r) {
+    std::ostringstream o;
+    o.precision(3);
+    o << r << ":1";
+    return o.str();
+  };
+  Table t({"grid", "index", "direction", "threshold", "blocks", "fast path", "coefficients", "bytes", "ratio",
+           "rms error", "max error"});
+  for (const auto& e : j["solutions"]) {
+    const auto dir = e["direction"];
+    const double blocks = e["blocks"].get<double>();
+    std::ostringstream fast;
+    fast.precision(3);
+    fast << e["fast_path_blocks"].get<std::uint64_t>() << " (" << 100.0 * e["fast_path_blocks"].get<double>() / blocks
+         << "%)";
+    t.add({e["name"], std::to_string(e["index"].get<int>()),
+           format_direction({dir[0].get<int>(), dir[1].get<int>(), dir[2].get<int>()}),
+           format_error(e["threshold"].get<double>()), e["blocks"].dump(), fast.str(), e["coefficients"].dump(),
+           format_bytes(e["compressed_bytes"].get<double>()), ratio(e["ratio"].get<double>()),
+           format_error(e["rms_error"].get<double>()), format_error(e["max_abs_error"].get<double>())});
+  }
+  s << t.str();
+  s << "total: " << format_bytes(j["float_rgb_bytes"].get<double>()) << " float RGB -> "
+    << format_bytes(j["compressed_bytes"].get<double>()) << " (" << ratio(j["ratio"].get<double>())
+    << "; with header and padding " << ratio(j["file_ratio"].get<double>()) << ")\n";
+  return s.str();
+}
+
 nlohmann::json output_summary(const fs::path& dir) {
   std::ifstream in(dir / "manifest.json");
   nlohmann::json m;
@@ -85,8 +169,11 @@ nlohmann::json output_summary(const fs::path& dir) {
   }
   m["kind"] = "output";
   m["missing_files"] = nlohmann::json::array();
-  for (const auto& model : m.value("models", nlohmann::json::array()))
+  for (const auto& model : m.value("models", nlohmann::json::array())) {
     if (!fs::exists(dir / model.value("file", ""))) m["missing_files"].push_back(model.value("file", ""));
+    if (model.contains("lbh_file") && !fs::exists(dir / model.value("lbh_file", "")))
+      m["missing_files"].push_back(model.value("lbh_file", ""));
+  }
   return m;
 }
 
@@ -130,9 +217,12 @@ int run_inspect(const InspectArgs& args) {
     j = inspect_vdb(p);
     j["kind"] = "vdb";
     text = vdb_text(j);
+  } else if (p.extension() == ".lbh") {
+    j = lbh_summary(p);
+    text = lbh_text(j);
   } else {
     throw_invalid("unknown file type '" + p.extension().string() +
-                      "'; allowed: a scene .json, a .vdb file or an lblight output directory",
+                      "'; allowed: a scene .json, a .vdb or .lbh file or an lblight output directory",
                   where);
   }
   std::cout << (args.json ? j.dump(2) + "\n" : text);
@@ -144,9 +234,10 @@ int run_inspect(const InspectArgs& args) {
 Command add_inspect_command(CLI::App& app, const GlobalOptions&) {
   auto args = std::make_shared<InspectArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "inspect", "Summarise a scene file (.json), an OpenVDB file (.vdb: grids, types, boxes, metadata) or a bake "
-                 "output directory (manifest: solutions, iterations, times, error estimates).");
-  cmd->add_option("path", args->path, "Scene, .vdb file or output directory")->required();
+      "inspect", "Summarise a scene file (.json), an OpenVDB file (.vdb: grids, types, boxes, metadata), a "
+                 "Haar-compressed stream (.lbh: validated; sizes, ratio, fast-path blocks, errors) or a bake output "
+                 "directory (manifest: solutions, iterations, times, error estimates).");
+  cmd->add_option("path", args->path, "Scene, .vdb or .lbh file, or output directory")->required();
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   return {cmd, [args] { return run_inspect(*args); }};
 }

@@ -26,5 +26,7 @@ Command add_inspect_command(CLI::App& app, const GlobalOptions& global);
 Command add_bench_command(CLI::App& app, const GlobalOptions& global);
 Command add_report_command(CLI::App& app, const GlobalOptions& global);
 Command add_voxelize_command(CLI::App& app, const GlobalOptions& global);
+Command add_compress_command(CLI::App& app, const GlobalOptions& global);
+Command add_decompress_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace lblight::cli

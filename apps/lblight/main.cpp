@@ -36,6 +36,8 @@ int main(int argc, char** argv) {
       cli::add_bench_command(app, global),
       cli::add_report_command(app, global),
       cli::add_voxelize_command(app, global),
+      cli::add_compress_command(app, global),
+      cli::add_decompress_command(app, global),
   };
 
   try {

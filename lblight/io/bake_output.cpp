@@ -4,6 +4,7 @@
 #include <cmath>
 #include <ctime>
 
+#include "lblight/compress/lbh_writer.h"
 #include "lblight/core/version.h"
 #include "lblight/io/vdb_io.h"
 
@@ -101,7 +102,21 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["peak_memory_bytes"] = peak_bytes_;
   model["solutions"] = nlohmann::json::array();
 
-  for (const SolutionResult& r : pending_) {
+  // Haar-compressed streams next to the .vdb when the scene asks for them (spec sec. 7).
+  const LbhOutputSpec& lbh = plan_.scene->output.lbh;
+  const std::string lbh_name = mp.spec->name + ".lbh";
+  std::vector<LbhEncoded> encoded;
+  if (lbh.enabled && !pending_.empty()) {
+    const LbhFrame lframe{frame.dims, frame.index_min, frame.index_to_world};
+    for (const SolutionResult& r : pending_)
+      encoded.push_back(encode_lbh_solution(lframe, {r.plan.grid_name, r.plan.index, r.plan.direction, &r.totals},
+                                            {lbh.threshold, lbh.relative}));
+    write_lbh(dir_.path(lbh_name), lframe, encoded);
+    model["lbh_file"] = lbh_name;
+  }
+
+  for (std::size_t si = 0; si < pending_.size(); ++si) {
+    const SolutionResult& r = pending_[si];
     DenseGridOut g;
     g.name = r.plan.grid_name;
     g.rgb = &r.totals;
@@ -130,6 +145,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
       hist.push_back({c.step, c.seconds, finite_or_null(c.change_l2), finite_or_null(c.error_estimate),
                       finite_or_null(c.error_estimate_max)});
     s["residual_history"] = hist;
+    if (!encoded.empty()) s["compression"] = lbh_stats_json(encoded[si], lbh_name);
     model["solutions"].push_back(s);
   }
   const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},

@@ -96,6 +96,8 @@ nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
   return j;
 }
 
+// lblight arrays are x fastest, index (z * ny + y) * nx + x: OpenVDB's LayoutXYZ (its LayoutZYX,
+// the Dense default, is z fastest and would scramble every grid for other OpenVDB readers).
 openvdb::CoordBBox frame_bbox(const DenseFrame& f) {
   const openvdb::Coord lo(f.index_min[0], f.index_min[1], f.index_min[2]);
   return {lo, lo.offsetBy(f.dims.nx - 1, f.dims.ny - 1, f.dims.nz - 1)};

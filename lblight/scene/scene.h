@@ -85,6 +85,18 @@ struct SolverSpec {
   Precision precision = Precision::Float32;
 };
 
+// "output": {"lbh": {"threshold": 0.01, "relative": true}} asks bake for <model>.lbh next to
+// <model>.vdb: Haar-compressed sub-block streams (docs/lbh-format.md, docs/compression.md).
+struct LbhOutputSpec {
+  bool enabled = false;
+  double threshold = 0.01;  // >= 0; relative: fraction of each solution's largest |value| (<= 1)
+  bool relative = true;
+};
+
+struct OutputSpec {
+  LbhOutputSpec lbh;
+};
+
 struct Scene {
   int version = kSceneVersion;
   std::string name;
@@ -93,6 +105,7 @@ struct Scene {
   std::vector<ModelSpec> models;
   LightingSpec lighting;
   SolverSpec solver;
+  OutputSpec output;
   std::string hash;            // "fnv1a64:<hex>" of the canonical JSON
 };
 

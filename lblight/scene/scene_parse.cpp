@@ -322,6 +322,28 @@ SolverSpec read_solver(const JsonReader& r) {
   return s;
 }
 
+// "output": {"lbh": {"threshold": T, "relative": true|false}}; "lbh": true takes the defaults.
+OutputSpec read_output(const JsonReader& r) {
+  r.expect_object();
+  r.only_keys({"lbh"});
+  OutputSpec out;
+  if (!r.has("lbh")) return out;
+  const JsonReader lbh = r.child("lbh");
+  if (lbh.json().is_boolean()) {
+    out.lbh.enabled = lbh.json().get<bool>();
+    return out;
+  }
+  if (!lbh.json().is_object())
+    r.fail("expected true, false or an object {\"threshold\": number, \"relative\": bool}", "lbh");
+  lbh.only_keys({"threshold", "relative"});
+  out.lbh.enabled = true;
+  out.lbh.relative = lbh.boolean_or("relative", true);
+  out.lbh.threshold = out.lbh.relative ? lbh.number_or("threshold", 0.01, 0.0, 1.0, "0 <= threshold <= 1 (a fraction "
+                                                                                     "of each solution's maximum)")
+                                       : lbh.number_or("threshold", 0.01, 0.0, 1e30, "threshold >= 0");
+  return out;
+}
+
 }  // namespace
 
 Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
@@ -356,7 +378,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   if (root.has("lighting")) scene.lighting = read_lighting(root.child("lighting"));
   else scene.lighting.solutions = parse_solution_list("all", root.location());
   if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
-  if (root.has("output")) root.child("output").only_keys({});
+  if (root.has("output")) scene.output = read_output(root.child("output"));
   scene.hash = "fnv1a64:" + hex64(fnv1a64(j.dump()));
   return scene;
 }

@@ -1,0 +1,106 @@
+// lblight compress: the Vec3f grids of a .vdb into Haar-compressed sub-block streams (.lbh).
+#include <CLI/CLI.hpp>
+
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "apps/lblight/cli_support.h"
+#include "apps/lblight/commands.h"
+#include "lblight/compress/vdb_compress.h"
+#include "lblight/core/error.h"
+
+namespace fs = std::filesystem;
+
+namespace lblight::cli {
+namespace {
+
+struct CompressArgs {
+  std::string input, output, grids;
+  double threshold = -1;
+  bool relative = false, json = false;
+  int threads = 0;
+};
+
+std::string format_ratio(double r) {
+  std::ostringstream s;
+  s.precision(r < 10 ? 3 : 4);
+  s << r << ":1";
+  return s.str();
+}
+
+int run_compress(const CompressArgs& a) {
+  const fs::path in = a.input;
+  if (!fs::exists(in)) throw_invalid("no such file", {in.string(), {}, {}});
+  if (in.extension() != ".vdb") throw_invalid("expected an OpenVDB file (.vdb)", {in.string(), {}, {}});
+  fs::path out = a.output.empty() ? fs::path(in).replace_extension(".lbh") : fs::path(a.output);
+  if (out.extension() != ".lbh") throw_invalid("the output must end in .lbh", {out.string(), {}, {}});
+  if (a.relative && a.threshold > 1)
+    throw_invalid("--threshold " + std::to_string(a.threshold) + " with --relative; allowed: 0..1 (a fraction of each "
+                  "solution's maximum)", {"--threshold", {}, {}});
+  std::vector<std::string> grids;
+  if (!a.grids.empty()) {
+    std::stringstream ss(a.grids);
+    std::string g;
+    while (std::getline(ss, g, ','))
+      if (!g.empty()) grids.push_back(g);
+  }
+  const LbhFileContents c = compress_vdb(in, {a.threshold, a.relative}, grids, a.threads);
+  write_lbh(out, c.frame, c.solutions);
+
+  nlohmann::json j;
+  j["input"] = in.string();
+  j["output"] = out.string();
+  j["file_bytes"] = fs::file_size(out);
+  j["solutions"] = nlohmann::json::array();
+  double float_bytes = 0, stream_bytes = 0;
+  Table t({"grid", "threshold", "ratio", "rms error", "max error", "max |value|", "fast blocks", "encode s"});
+  for (const LbhEncoded& e : c.solutions) {
+    const LbhStats& s = e.stats;
+    float_bytes += static_cast<double>(s.float_rgb_bytes);
+    stream_bytes += static_cast<double>(s.stream_bytes);
+    nlohmann::json row = lbh_stats_json(e, out.filename().string());
+    row["grid"] = e.name;
+    j["solutions"].push_back(row);
+    t.add({e.name, format_error(s.threshold), format_ratio(s.ratio), format_error(s.rms_error),
+           format_error(s.max_abs_error), format_error(s.max_abs_value),
+           std::to_string(s.fast_blocks) + "/" + std::to_string(s.blocks), format_seconds(s.encode_seconds)});
+  }
+  j["float_rgb_bytes"] = float_bytes;
+  j["compressed_bytes"] = stream_bytes;
+  j["ratio"] = float_bytes / stream_bytes;
+  if (a.json) {
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::cout << t.str() << c.solutions.size() << " solution(s): " << format_bytes(float_bytes) << " float RGB -> "
+              << format_bytes(stream_bytes) << " compressed (" << format_ratio(float_bytes / stream_bytes) << "), file "
+              << format_bytes(static_cast<double>(j["file_bytes"].get<std::uintmax_t>())) << ": " << out.string()
+              << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Command add_compress_command(CLI::App& app, const GlobalOptions&) {
+  auto args = std::make_shared<CompressArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "compress",
+      "Compress the Vec3f grids (B00..B18 or light) of a .vdb into Haar sub-block streams (.lbh, docs/lbh-format.md): "
+      "3^3 sub-blocks with a forward border, detail coefficients below the threshold in all three channels dropped. "
+      "Prints ratio, RMS and max error per grid.");
+  cmd->add_option("input", args->input, "Input .vdb (e.g. a bake's <model>.vdb)")->required();
+  cmd->add_option("--threshold", args->threshold,
+                  "Drop detail coefficients below this magnitude (absolute, or with --relative a fraction of each "
+                  "grid's largest |value|); 0 is lossless")
+      ->required()
+      ->check(CLI::Range(0.0, 1e30));
+  cmd->add_flag("--relative", args->relative, "Threshold relative to each grid's largest |value| (e.g. 0.01 = 1%)");
+  cmd->add_option("-o,--output", args->output, "Output .lbh (default: the input with extension .lbh)");
+  cmd->add_option("--grids", args->grids, "Comma-separated grid names (default: every Vec3f grid)");
+  cmd->add_option("--threads", args->threads, "Encoder threads (0 = all cores)")->check(CLI::Range(0, 4096));
+  cmd->add_flag("--json", args->json, "Print JSON instead of text");
+  return {cmd, [args] { return run_compress(*args); }};
+}
+
+}  // namespace lblight::cli

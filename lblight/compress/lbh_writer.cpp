@@ -1,0 +1,294 @@
+#include "lblight/compress/lbh_writer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <thread>
+
+#include "lblight/compress/haar.h"
+#include "lblight/core/error.h"
+#include "lblight/io/output_dir.h"
+
+namespace lblight {
+namespace {
+
+// Per z-slab of sub-blocks: partial results added in slab order (deterministic for any thread count).
+struct SlabStats {
+  double sum_sq = 0, max_err = 0, max_err_block = 0, bound = 0;
+  std::uint64_t fast = 0;
+};
+
+// Runs fn(slab) for slab = 0..count-1 on up to `threads` threads.
+template <typename Fn>
+void parallel_slabs(int count, int threads, Fn fn) {
+  int n = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  n = std::max(1, std::min(n, count));
+  std::atomic<int> next{0};
+  auto work = [&] {
+    for (int s = next++; s < count; s = next++) fn(s);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+}
+
+// Nodes i of one axis whose value the reader takes from block b: [3b, 3b + 2], and for the last
+// block every node up to n - 1.
+void own_range(int b, int nb, int n, int& lo, int& hi) {
+  lo = 3 * b;
+  hi = b == nb - 1 ? n - 1 : 3 * b + 2;
+}
+
+void put32(std::string& s, std::size_t at, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) s[at + k] = static_cast<char>((v >> (8 * k)) & 0xFFu);
+}
+void put64(std::string& s, std::size_t at, std::uint64_t v) {
+  for (int k = 0; k < 8; ++k) s[at + k] = static_cast<char>((v >> (8 * k)) & 0xFFu);
+}
+void puti32(std::string& s, std::size_t at, std::int32_t v) {
+  std::uint32_t u;
+  std::memcpy(&u, &v, 4);
+  put32(s, at, u);
+}
+void putf32(std::string& s, std::size_t at, float v) {
+  std::uint32_t u;
+  std::memcpy(&u, &v, 4);
+  put32(s, at, u);
+}
+void putf64(std::string& s, std::size_t at, double v) {
+  std::uint64_t u;
+  std::memcpy(&u, &v, 8);
+  put64(s, at, u);
+}
+std::uint64_t align64(std::uint64_t v) { return (v + 63) / 64 * 64; }
+
+}  // namespace
+
+LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhThreshold& threshold,
+                               int threads) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Dims& d = frame.dims;
+  const Location where{in.name, {}, {}};
+  if (d.nx < 1 || d.ny < 1 || d.nz < 1 || d.nx > lbh::kMaxDim || d.ny > lbh::kMaxDim || d.nz > lbh::kMaxDim)
+    throw_invalid("lattice dims must be 1.." + std::to_string(lbh::kMaxDim) + " per axis", where);
+  if (!in.rgb) throw Error(ErrorCategory::Internal, "encode_lbh_solution: no values", where);
+  for (const auto& ch : *in.rgb)
+    if (ch.size() != d.count()) throw Error(ErrorCategory::Internal, "encode_lbh_solution: size mismatch", where);
+  if (!(threshold.value >= 0) || !std::isfinite(threshold.value))
+    throw_invalid("threshold " + std::to_string(threshold.value) + " is not allowed; allowed: a finite number >= 0",
+                  where);
+
+  LbhEncoded out;
+  out.name = in.name;
+  out.index = in.index;
+  out.direction = in.direction;
+  out.requested = threshold;
+
+  // Scale of a relative threshold; rejects NaN/Inf with the node that holds it.
+  double max_abs = 0;
+  for (int c = 0; c < 3; ++c) {
+    const std::vector<float>& v = (*in.rgb)[c];
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (!std::isfinite(v[i])) {
+        const std::size_t x = i % d.nx, y = (i / d.nx) % d.ny, z = i / (static_cast<std::size_t>(d.nx) * d.ny);
+        throw_invalid("solution " + in.name + " holds a non-finite value; allowed: finite values",
+                      {in.name, {}, "(" + std::to_string(x) + ", " + std::to_string(y) + ", " + std::to_string(z) + ")"});
+      }
+      max_abs = std::max(max_abs, static_cast<double>(std::fabs(v[i])));
+    }
+  }
+  out.max_abs_value = static_cast<float>(max_abs);
+  const double t_abs = threshold.relative ? threshold.value * max_abs : threshold.value;
+  out.threshold = static_cast<float>(t_abs);
+  if (!std::isfinite(out.threshold)) throw_invalid("threshold overflows a float", where);
+
+  const int nb[3] = {haar::blocks_along(d.nx), haar::blocks_along(d.ny), haar::blocks_along(d.nz)};
+  const std::uint64_t nblocks = static_cast<std::uint64_t>(nb[0]) * nb[1] * nb[2];
+  const std::array<const float*, 3> rgb = {(*in.rgb)[0].data(), (*in.rgb)[1].data(), (*in.rgb)[2].data()};
+  out.masks.assign(nblocks, 0u);
+  out.offsets.assign(nblocks, 0u);
+  const std::size_t slab = static_cast<std::size_t>(nb[0]) * nb[1];
+
+  // Pass 1: transform and threshold every block, keep the masks.
+  parallel_slabs(nb[2], threads, [&](int bz) {
+    haar::Block blk;
+    for (int by = 0; by < nb[1]; ++by)
+      for (int bx = 0; bx < nb[0]; ++bx) {
+        haar::gather_block(rgb, d, bx, by, bz, blk);
+        haar::forward(blk);
+        out.masks[bz * slab + static_cast<std::size_t>(by) * nb[0] + bx] = haar::keep_mask(blk, out.threshold);
+      }
+  });
+
+  // Offsets: prefix sums of the kept counts.
+  std::uint64_t total = 0;
+  for (std::uint64_t b = 0; b < nblocks; ++b) {
+    if (total > 0xFFFFFFFFull) throw_invalid("more than 2^32 coefficients in one solution", where);
+    out.offsets[b] = static_cast<std::uint32_t>(total);
+    total += static_cast<std::uint64_t>(lbh::popcount64(out.masks[b]));
+  }
+  out.coeffs.assign(total * 3, 0.0f);
+
+  // Pass 2: pack the kept coefficients, decode each block the way readers do and measure.
+  std::vector<SlabStats> stats(static_cast<std::size_t>(nb[2]));
+  const lbh::SolutionView view{out.masks.data(), out.offsets.data(), out.coeffs.data()};
+  parallel_slabs(nb[2], threads, [&](int bz) {
+    haar::Block blk, orig;
+    lbh::Rgb dec[64];
+    SlabStats& st = stats[static_cast<std::size_t>(bz)];
+    for (int by = 0; by < nb[1]; ++by)
+      for (int bx = 0; bx < nb[0]; ++bx) {
+        const std::size_t b = bz * slab + static_cast<std::size_t>(by) * nb[0] + bx;
+        haar::gather_block(rgb, d, bx, by, bz, orig);
+        blk = orig;
+        haar::forward(blk);
+        const std::uint64_t mask = out.masks[b];
+        float* dst = out.coeffs.data() + 3ull * out.offsets[b];
+        for (std::uint64_t m = mask; m; m &= m - 1, dst += 3) {
+          const int l = lbh::lowest_bit(m);
+          dst[0] = blk[0][l];
+          dst[1] = blk[1][l];
+          dst[2] = blk[2][l];
+        }
+        st.fast += mask == 1u;
+        st.bound = std::max(st.bound, static_cast<double>(haar::dropped_path_bound(blk, mask)));
+        lbh::decode_block(view, b, dec);
+        for (int l = 0; l < 64; ++l) {
+          const float got[3] = {dec[l].r, dec[l].g, dec[l].b};
+          for (int c = 0; c < 3; ++c)
+            st.max_err_block = std::max(st.max_err_block, static_cast<double>(std::fabs(got[c] - orig[c][l])));
+        }
+        int lo[3], hi[3];
+        own_range(bx, nb[0], d.nx, lo[0], hi[0]);
+        own_range(by, nb[1], d.ny, lo[1], hi[1]);
+        own_range(bz, nb[2], d.nz, lo[2], hi[2]);
+        for (int z = lo[2]; z <= hi[2]; ++z)
+          for (int y = lo[1]; y <= hi[1]; ++y)
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+              const int l = (x - lo[0]) + 4 * (y - lo[1]) + 16 * (z - lo[2]);
+              const float got[3] = {dec[l].r, dec[l].g, dec[l].b};
+              for (int c = 0; c < 3; ++c) {
+                const double e = static_cast<double>(got[c]) - static_cast<double>(orig[c][l]);
+                st.sum_sq += e * e;
+                st.max_err = std::max(st.max_err, std::fabs(e));
+              }
+            }
+      }
+  });
+
+  LbhStats& s = out.stats;
+  double sum_sq = 0;
+  for (const SlabStats& st : stats) {
+    sum_sq += st.sum_sq;
+    s.max_abs_error = std::max(s.max_abs_error, st.max_err);
+    s.max_abs_error_block = std::max(s.max_abs_error_block, st.max_err_block);
+    s.error_bound = std::max(s.error_bound, st.bound);
+    s.fast_blocks += st.fast;
+  }
+  s.nodes = d.count();
+  s.blocks = nblocks;
+  s.coefficients = total;
+  s.float_rgb_bytes = s.nodes * 12u;
+  s.stream_bytes = nblocks * 12u + total * 12u;
+  s.ratio = static_cast<double>(s.float_rgb_bytes) / static_cast<double>(s.stream_bytes);
+  s.max_abs_value = max_abs;
+  s.threshold = out.threshold;
+  s.rms_error = std::sqrt(sum_sq / (3.0 * static_cast<double>(s.nodes)));
+  s.encode_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& sols) {
+  if (sols.empty() || sols.size() > lbh::kMaxSolutions)
+    throw Error(ErrorCategory::Internal, "an .lbh file holds 1.." + std::to_string(lbh::kMaxSolutions) + " solutions");
+  const std::uint64_t table_end = lbh::kHeaderBytes + sols.size() * lbh::kEntryBytes;
+  // Canonical layout: per solution masks, offsets, coefficients, each at the next multiple of 64.
+  std::vector<std::array<std::uint64_t, 3>> at(sols.size());
+  std::uint64_t pos = table_end;
+  for (std::size_t i = 0; i < sols.size(); ++i) {
+    at[i][0] = align64(pos);
+    pos = at[i][0] + sols[i].masks.size() * 8;
+    at[i][1] = align64(pos);
+    pos = at[i][1] + sols[i].offsets.size() * 4;
+    at[i][2] = align64(pos);
+    pos = at[i][2] + sols[i].coeffs.size() * 4;
+  }
+  std::string s(pos, '\0');
+
+  for (std::size_t i = 0; i < sols.size(); ++i) {
+    const LbhEncoded& e = sols[i];
+    if (e.name.empty() || e.name.size() > 15)
+      throw Error(ErrorCategory::Internal, "solution name '" + e.name + "' must have 1..15 characters");
+    const std::size_t t = lbh::kHeaderBytes + i * lbh::kEntryBytes;
+    std::memcpy(&s[t], e.name.data(), e.name.size());
+    puti32(s, t + 16, e.index);
+    for (int a = 0; a < 3; ++a) puti32(s, t + 20 + 4 * a, e.direction[a]);
+    put32(s, t + 32, e.requested.relative ? 1u : 0u);
+    putf32(s, t + 36, static_cast<float>(e.requested.value));
+    putf32(s, t + 40, e.threshold);
+    putf32(s, t + 44, e.max_abs_value);
+    put64(s, t + 48, e.masks.size());
+    put64(s, t + 56, e.coeffs.size() / 3);
+    for (int k = 0; k < 3; ++k) put64(s, t + 64 + 8 * k, at[i][k]);
+    if (!e.masks.empty()) std::memcpy(&s[at[i][0]], e.masks.data(), e.masks.size() * 8);  // little-endian host
+    if (!e.offsets.empty()) std::memcpy(&s[at[i][1]], e.offsets.data(), e.offsets.size() * 4);
+    if (!e.coeffs.empty()) std::memcpy(&s[at[i][2]], e.coeffs.data(), e.coeffs.size() * 4);
+    put32(s, t + 88, lbh::crc32(&s[at[i][0]], e.masks.size() * 8));
+    put32(s, t + 92, lbh::crc32(&s[at[i][1]], e.offsets.size() * 4));
+    put32(s, t + 96, lbh::crc32(&s[at[i][2]], e.coeffs.size() * 4));
+    put64(s, t + 104, e.stats.fast_blocks);
+    putf32(s, t + 112, static_cast<float>(e.stats.max_abs_error));
+    putf32(s, t + 116, static_cast<float>(e.stats.rms_error));
+  }
+
+  static const unsigned char magic[8] = {0x89, 'L', 'B', 'H', 0x0D, 0x0A, 0x1A, 0x0A};
+  std::memcpy(&s[0], magic, 8);
+  put32(s, 8, lbh::kVersion);
+  put32(s, 12, lbh::kEndianTag);
+  put32(s, 16, lbh::kHeaderBytes);
+  put32(s, 20, lbh::kEntryBytes);
+  put64(s, 24, pos);
+  put32(s, 32, static_cast<std::uint32_t>(sols.size()));
+  put32(s, 36, 0);
+  const int dims[3] = {frame.dims.nx, frame.dims.ny, frame.dims.nz};
+  for (int a = 0; a < 3; ++a) {
+    puti32(s, 40 + 4 * a, dims[a]);
+    puti32(s, 52 + 4 * a, frame.index_min[a]);
+    put32(s, 64 + 4 * a, lbh::detail::blocks_for(dims[a]));
+  }
+  for (int e = 0; e < 16; ++e) putf64(s, 80 + 8 * e, frame.index_to_world[e]);
+  put64(s, 208, lbh::kHeaderBytes);
+  put32(s, 216, lbh::crc32(&s[lbh::kHeaderBytes], table_end - lbh::kHeaderBytes));
+  put32(s, 252, lbh::crc32(s.data(), 252));
+  return s;
+}
+
+void write_lbh(const std::filesystem::path& file, const LbhFrame& frame, const std::vector<LbhEncoded>& solutions) {
+  write_file_atomically(file, serialize_lbh(frame, solutions));
+}
+
+nlohmann::json lbh_stats_json(const LbhEncoded& e, const std::string& file_name) {
+  const LbhStats& s = e.stats;
+  nlohmann::json j;
+  j["file"] = file_name;
+  j["threshold"] = s.threshold;
+  j["threshold_requested"] = {{"value", e.requested.value}, {"relative", e.requested.relative}};
+  j["max_abs_value"] = s.max_abs_value;
+  j["float_rgb_bytes"] = s.float_rgb_bytes;
+  j["compressed_bytes"] = s.stream_bytes;
+  j["ratio"] = s.ratio;
+  j["rms_error"] = s.rms_error;
+  j["max_abs_error"] = s.max_abs_error;
+  j["max_abs_error_stored_values"] = s.max_abs_error_block;
+  j["error_bound"] = s.error_bound;
+  j["blocks"] = s.blocks;
+  j["fast_path_blocks"] = s.fast_blocks;
+  j["coefficients"] = s.coefficients;
+  j["encode_seconds"] = s.encode_seconds;
+  return j;
+}
+
+}  // namespace lblight

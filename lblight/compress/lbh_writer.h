@@ -1,0 +1,82 @@
+// Haar-compressed sub-block streams (spec sec. 7; 001 secs. 2.3, 4.5, 5.3): encoding one base
+// solution, measuring what the compression cost, and writing the .lbh file of a model
+// (docs/lbh-format.md). Readers use readers/lbh/lbh_reader.h.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lblight/lattice/lattice.h"
+
+namespace lblight {
+
+// Absolute, or relative to the solution's largest |value| over all nodes and channels.
+struct LbhThreshold {
+  double value = 0.0;
+  bool relative = false;
+};
+
+// The lattice every solution of one file shares: node (i, j, k) sits at index coordinate
+// index_min + (i, j, k); index_to_world is row-major and acts on (i, j, k, 1).
+struct LbhFrame {
+  Dims dims;
+  std::array<int, 3> index_min{};
+  std::array<double, 16> index_to_world{};
+};
+
+struct LbhSolutionIn {
+  std::string name;                       // grid name, at most 15 ASCII characters ("B05", "light")
+  int index = -1;                         // base solution 0..18, -1 otherwise
+  std::array<int, 3> direction{};
+  const std::array<std::vector<float>, 3>* rgb = nullptr;  // R, G, B per node, x fastest
+};
+
+// What compressing one solution cost. Errors are over the decoded lattice nodes (each node from
+// the sub-block the sampler reads it from), all three channels.
+struct LbhStats {
+  std::uint64_t nodes = 0, blocks = 0, fast_blocks = 0, coefficients = 0;
+  std::uint64_t float_rgb_bytes = 0;  // nodes x 3 x 4
+  std::uint64_t stream_bytes = 0;     // masks (8) + offsets (4) per block + 12 per kept coefficient
+  double ratio = 0;                   // float_rgb_bytes / stream_bytes
+  double max_abs_value = 0;           // largest |value| of the original (the relative scale)
+  double threshold = 0;               // absolute threshold applied
+  double rms_error = 0, max_abs_error = 0;  // over nodes and channels
+  double max_abs_error_block = 0;     // over every stored value, forward borders included
+  double error_bound = 0;             // max over values of the sum of dropped |coefficients| on its path
+  double encode_seconds = 0;
+};
+
+struct LbhEncoded {
+  std::string name;
+  int index = -1;
+  std::array<int, 3> direction{};
+  LbhThreshold requested;
+  float threshold = 0;      // absolute, as applied and stored
+  float max_abs_value = 0;
+  std::vector<std::uint64_t> masks;
+  std::vector<std::uint32_t> offsets;
+  std::vector<float> coeffs;  // kept coefficients, 3 floats each
+  LbhStats stats;
+};
+
+// Encodes one solution with `threads` threads (0 = all cores). Throws Error(InvalidInput) on
+// non-finite values or a negative/non-finite threshold. The result does not depend on the
+// thread count.
+LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhThreshold& threshold,
+                               int threads = 0);
+
+// The file bytes (docs/lbh-format.md) for the given solutions, in order.
+std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& solutions);
+
+// Writes serialize_lbh() to `file` through a temporary name and a rename.
+void write_lbh(const std::filesystem::path& file, const LbhFrame& frame, const std::vector<LbhEncoded>& solutions);
+
+// Manifest entry of one compressed solution ("compression" in manifest.json).
+nlohmann::json lbh_stats_json(const LbhEncoded& e, const std::string& file_name);
+
+}  // namespace lblight

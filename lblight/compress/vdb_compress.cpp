@@ -1,0 +1,112 @@
+#include "lblight/compress/vdb_compress.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "lblight/core/error.h"
+#include "lblight/core/version.h"
+#include "lblight/io/vdb_io.h"
+#include "readers/lbh/lbh_reader.h"
+
+namespace lblight {
+
+LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhThreshold& threshold,
+                             const std::vector<std::string>& wanted, int threads) {
+  const Location where{file.string(), {}, {}};
+  const nlohmann::json info = inspect_vdb(file);
+  std::vector<std::string> names;
+  for (const auto& g : info["grids"])
+    if (g["type"] == "vec3s") names.push_back(g["name"].get<std::string>());
+  std::sort(names.begin(), names.end());
+  if (!wanted.empty()) {
+    for (const std::string& w : wanted)
+      if (std::find(names.begin(), names.end(), w) == names.end()) {
+        std::string list;
+        for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+        throw_invalid("no Vec3f grid named '" + w + "'; Vec3f grids in the file: " + (list.empty() ? "(none)" : list),
+                      where);
+      }
+    names = wanted;
+  }
+  if (names.empty()) throw_invalid("the file holds no Vec3f grid to compress (expected B00..B18 or light)", where);
+
+  LbhFileContents out;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const DenseGridIn g = read_vdb_grid_dense(file, names[i]);
+    if (g.type != "vec3s") throw_invalid("grid '" + names[i] + "' is not a Vec3f grid", where);
+    if (names[i].size() > 15) throw_invalid("grid name '" + names[i] + "' is longer than 15 characters", where);
+    const LbhFrame frame{g.frame.dims, g.frame.index_min, g.frame.index_to_world};
+    if (i == 0) out.frame = frame;
+    else if (!(frame.dims == out.frame.dims) || frame.index_min != out.frame.index_min ||
+             frame.index_to_world != out.frame.index_to_world)
+      throw_invalid("grid '" + names[i] + "' does not share the lattice (dims, index box, transform) of grid '" +
+                        names[0] + "'; one .lbh holds solutions on one lattice",
+                    where);
+    LbhSolutionIn in;
+    in.name = names[i];
+    in.rgb = &g.values;
+    if (g.metadata.contains("lblight_solution") && g.metadata["lblight_solution"].is_number_integer())
+      in.index = g.metadata["lblight_solution"].get<int>();
+    if (in.index < -1 || in.index > 18) in.index = -1;
+    if (g.metadata.contains("lblight_direction") && g.metadata["lblight_direction"].is_array() &&
+        g.metadata["lblight_direction"].size() == 3)
+      for (int a = 0; a < 3; ++a) in.direction[a] = std::clamp(g.metadata["lblight_direction"][a].get<int>(), -1, 1);
+    out.solutions.push_back(encode_lbh_solution(frame, in, threshold, threads));
+  }
+  return out;
+}
+
+void decompress_lbh(const std::filesystem::path& lbh_path, const std::filesystem::path& vdb) {
+  lbh::Stream s;
+  if (const lbh::Status st = s.open_file(lbh_path.string()); st != lbh::Status::Ok) {
+    if (st == lbh::Status::IoError) throw_io(s.error());
+    throw_invalid(s.error());
+  }
+  const lbh::Header& h = s.header();
+  DenseFrame frame;
+  frame.dims = {h.dims[0], h.dims[1], h.dims[2]};
+  frame.index_min = {h.index_min[0], h.index_min[1], h.index_min[2]};
+  std::copy(h.index_to_world, h.index_to_world + 16, frame.index_to_world.begin());
+  const nlohmann::json lattice_box = {{"lblight_lattice_min", frame.index_min},
+                                      {"lblight_lattice_dims", {frame.dims.nx, frame.dims.ny, frame.dims.nz}}};
+
+  std::vector<std::array<std::vector<float>, 3>> values(s.solution_count());
+  std::vector<DenseGridOut> grids;
+  for (std::size_t slot = 0; slot < s.solution_count(); ++slot) {
+    const lbh::SolutionInfo& info = s.info(slot);
+    const std::vector<float> rgb = s.decode_all(slot);
+    for (int c = 0; c < 3; ++c) {
+      values[slot][c].resize(frame.dims.count());
+      for (std::size_t i = 0; i < frame.dims.count(); ++i) values[slot][c][i] = rgb[3 * i + c];
+    }
+    DenseGridOut g;
+    g.name = info.name;
+    g.rgb = &values[slot];
+    g.metadata = lattice_box;
+    if (info.index >= 0) g.metadata["lblight_solution"] = info.index;
+    g.metadata["lblight_direction"] = {info.direction[0], info.direction[1], info.direction[2]};
+    g.metadata["lblight_lbh_threshold"] = static_cast<double>(info.threshold);
+    grids.push_back(g);
+  }
+  const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion + " decompress"},
+                                    {"lblight_source", lbh_path.filename().string()}};
+  std::mt19937_64 rng(std::random_device{}());
+  const std::filesystem::path tmp =
+      vdb.parent_path() / ("." + vdb.filename().string() + ".tmp-" + std::to_string(rng() % 1000000007ull));
+  try {
+    write_vdb(tmp, frame, grids, file_meta);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, vdb, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw_io("cannot move the decompressed file into place: " + ec.message(), {vdb.string(), {}, {}});
+  }
+}
+
+}  // namespace lblight

@@ -1,0 +1,538 @@
+// Haar sub-block streams: the transform (001 sec. 2.3), the encoder's error bound, the reader's
+// sampling and relighting, and the reader's rejection of damaged files.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "lblight/compress/haar.h"
+#include "lblight/compress/lbh_writer.h"
+#include "lblight/lattice/sun.h"
+#include "readers/lbh/lbh_reader.h"
+
+using namespace lblight;
+
+namespace {
+
+// A light-like field: smooth falloff, a sharp shadow edge, a constant corner, small noise.
+std::array<std::vector<float>, 3> make_field(const Dims& d, unsigned seed, float noise = 0.02f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::array<std::vector<float>, 3> rgb;
+  for (auto& c : rgb) c.resize(d.count());
+  for (int z = 0; z < d.nz; ++z)
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x) {
+        const std::size_t i = d.index(x, y, z);
+        const bool corner = x <= d.nx / 2 && y <= d.ny / 2;
+        const float smooth = 2.0f + std::sin(0.3f * x) * std::cos(0.2f * y) + 0.05f * z;
+        const float shadow = x + y > d.nx ? 0.4f : 1.0f;
+        for (int c = 0; c < 3; ++c)
+          rgb[c][i] = corner ? 1.5f : (smooth * shadow * (1.0f + 0.1f * c) + noise * u(rng));
+      }
+  return rgb;
+}
+
+LbhFrame frame_of(const Dims& d) {
+  LbhFrame f;
+  f.dims = d;
+  f.index_min = {-3, 5, 7};
+  // scale 0.25, a rotation about z by 90 degrees, a translation
+  f.index_to_world = {0, -0.25, 0, 1.0, 0.25, 0, 0, -2.0, 0, 0, 0.25, 0.5, 0, 0, 0, 1};
+  return f;
+}
+
+struct Encoded {
+  LbhFrame frame;
+  std::vector<LbhEncoded> sols;
+  std::array<std::vector<float>, 3> field;
+  std::string bytes;
+};
+
+Encoded encode(const Dims& d, LbhThreshold t, unsigned seed = 1, float noise = 0.02f, int threads = 2) {
+  Encoded e;
+  e.frame = frame_of(d);
+  e.field = make_field(d, seed, noise);
+  e.sols.push_back(encode_lbh_solution(e.frame, {"B00", 0, {0, 0, 0}, &e.field}, t, threads));
+  e.bytes = serialize_lbh(e.frame, e.sols);
+  return e;
+}
+
+lbh::Stream open_ok(const std::string& bytes) {
+  lbh::Stream s;
+  const lbh::Status st = s.open_memory(bytes.data(), bytes.size());
+  INFO(s.error());
+  REQUIRE(st == lbh::Status::Ok);
+  return s;
+}
+
+// Reference trilinear sampling of a decoded lattice (interleaved RGB), clamped at both ends.
+lbh::Rgb trilinear(const std::vector<float>& v, const Dims& d, double u, double w, double t) {
+  const int n[3] = {d.nx, d.ny, d.nz};
+  double p[3] = {u, w, t};
+  int i0[3], i1[3];
+  double a[3];
+  for (int k = 0; k < 3; ++k) {
+    p[k] = std::min(std::max(p[k], 0.0), static_cast<double>(n[k] - 1));
+    i0[k] = std::min(static_cast<int>(std::floor(p[k])), std::max(n[k] - 2, 0));
+    i1[k] = std::min(i0[k] + 1, n[k] - 1);
+    a[k] = p[k] - i0[k];
+  }
+  double out[3] = {0, 0, 0};
+  for (int c = 0; c < 8; ++c) {
+    const int x = c & 1 ? i1[0] : i0[0], y = c & 2 ? i1[1] : i0[1], z = c & 4 ? i1[2] : i0[2];
+    const double wt = (c & 1 ? a[0] : 1 - a[0]) * (c & 2 ? a[1] : 1 - a[1]) * (c & 4 ? a[2] : 1 - a[2]);
+    for (int ch = 0; ch < 3; ++ch) out[ch] += wt * v[d.index(x, y, z) * 3 + ch];
+  }
+  return {static_cast<float>(out[0]), static_cast<float>(out[1]), static_cast<float>(out[2])};
+}
+
+void put32(std::string& s, std::size_t at, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) s[at + k] = static_cast<char>(v >> (8 * k));
+}
+void put64(std::string& s, std::size_t at, std::uint64_t v) {
+  for (int k = 0; k < 8; ++k) s[at + k] = static_cast<char>(v >> (8 * k));
+}
+void fix_header_crc(std::string& s) { put32(s, 252, lbh::crc32(s.data(), 252)); }
+void fix_table_crc(std::string& s, int solutions = 1) {
+  put32(s, 216, lbh::crc32(s.data() + 256, 128u * solutions));
+  fix_header_crc(s);
+}
+
+}  // namespace
+
+TEST_CASE("001's Haar example [4 19 44 0] gives [16.75 -5.25 -7.5 22]", "[haar]") {
+  float v[4] = {4, 19, 44, 0};
+  lbh::haar_forward_1d(v, 1);
+  CHECK(v[0] == 16.75f);
+  CHECK(v[1] == -5.25f);
+  CHECK(v[2] == -7.5f);
+  CHECK(v[3] == 22.0f);
+  lbh::haar_inverse_1d(v, 1);
+  CHECK(v[0] == 4.0f);
+  CHECK(v[1] == 19.0f);
+  CHECK(v[2] == 44.0f);
+  CHECK(v[3] == 0.0f);
+  // the same sequence along z inside a block (stride 16): transform order z, y, x
+  float b[64] = {};
+  for (int z = 0; z < 4; ++z) b[16 * z] = std::array<float, 4>{4, 19, 44, 0}[z];
+  lbh::haar_forward_1d(b, 16);
+  CHECK(b[0] == 16.75f);
+  CHECK(b[16] == -5.25f);
+  CHECK(b[32] == -7.5f);
+  CHECK(b[48] == 22.0f);
+}
+
+TEST_CASE("3D Haar block: layout, separability and inverse", "[haar]") {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-5, 5);
+  float v[64], c[64];
+  for (float& x : v) x = u(rng);
+  std::memcpy(c, v, sizeof v);
+  lbh::haar_forward_block(c);
+  float r[64];
+  std::memcpy(r, c, sizeof c);
+  lbh::haar_inverse_block(r);
+  for (int i = 0; i < 64; ++i) CHECK(r[i] == Approx(v[i]).margin(1e-5));
+  // coefficient 0 is the block average
+  double mean = 0;
+  for (float x : v) mean += x / 64.0;
+  CHECK(c[0] == Approx(mean).margin(1e-5));
+  // a field varying along x only has coefficients only at fy = fz = 0 (indices 0..3)
+  float xs[64];
+  for (int i = 0; i < 64; ++i) xs[i] = std::array<float, 4>{4, 19, 44, 0}[i & 3];
+  lbh::haar_forward_block(xs);
+  CHECK(xs[0] == 16.75f);
+  CHECK(xs[1] == -5.25f);
+  CHECK(xs[2] == -7.5f);
+  CHECK(xs[3] == 22.0f);
+  for (int i = 4; i < 64; ++i) CHECK(xs[i] == 0.0f);
+  // a constant block keeps only its average, even at threshold 0 (the fast path)
+  haar::Block k;
+  for (auto& ch : k) ch.fill(0.7f);
+  haar::forward(k);
+  CHECK(haar::keep_mask(k, 0.0f) == 1u);
+}
+
+TEST_CASE("Threshold 0 round-trips every node to float rounding", "[haar]") {
+  for (const Dims d : {Dims{11, 7, 5}, Dims{1, 1, 1}, Dims{2, 3, 4}, Dims{4, 4, 4}, Dims{13, 1, 10}}) {
+    const Encoded e = encode(d, {0.0, false});
+    const lbh::Stream s = open_ok(e.bytes);
+    const std::vector<float> dec = s.decode_all(0);
+    double worst = 0, scale = 0;
+    for (std::size_t i = 0; i < d.count(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        worst = std::max(worst, std::fabs(static_cast<double>(dec[3 * i + c]) - e.field[c][i]));
+        scale = std::max(scale, std::fabs(static_cast<double>(e.field[c][i])));
+      }
+    INFO(d.nx << "x" << d.ny << "x" << d.nz);
+    CHECK(worst <= 1e-6 * scale);
+    CHECK(e.sols[0].stats.max_abs_error <= 1e-6 * scale);
+    CHECK(e.sols[0].stats.error_bound == 0.0);
+    // constant corner region: those blocks take the fast path
+    if (d.nx >= 11) CHECK(e.sols[0].stats.fast_blocks > 0);
+  }
+}
+
+TEST_CASE("The max error never exceeds the bound the threshold implies", "[haar]") {
+  const Dims d{20, 17, 14};
+  for (double rel : {0.001, 0.01, 0.03, 0.1, 0.5}) {
+    const Encoded e = encode(d, {rel, true}, 7, 0.05f);
+    const LbhStats& st = e.sols[0].stats;
+    const double t = e.sols[0].threshold;
+    INFO("relative threshold " << rel << ", t = " << t);
+    CHECK(t == Approx(rel * st.max_abs_value));
+    const double eps = 2e-6 * st.max_abs_value;  // float rounding of the filters
+    // measured over every stored value (forward borders included) <= sum of dropped |c| on the
+    // value's path <= 26 t
+    CHECK(st.max_abs_error <= st.max_abs_error_block);
+    CHECK(st.max_abs_error_block <= st.error_bound + eps);
+    CHECK(st.error_bound < haar::kMaxDetailsPerValue * t);
+    // recompute independently from the decoded lattice
+    const lbh::Stream s = open_ok(e.bytes);
+    const std::vector<float> dec = s.decode_all(0);
+    double worst = 0, sq = 0;
+    for (std::size_t i = 0; i < d.count(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        const double err = static_cast<double>(dec[3 * i + c]) - e.field[c][i];
+        worst = std::max(worst, std::fabs(err));
+        sq += err * err;
+      }
+    CHECK(worst == Approx(st.max_abs_error).margin(1e-7));
+    CHECK(std::sqrt(sq / (3.0 * d.count())) == Approx(st.rms_error).epsilon(1e-6).margin(1e-9));
+    CHECK(worst <= haar::kMaxDetailsPerValue * t + eps);
+    CHECK(st.ratio == Approx(d.count() * 12.0 / (st.blocks * 12.0 + st.coefficients * 12.0)));
+  }
+}
+
+TEST_CASE("Error bound of one block is attained by a worst-case pattern", "[haar]") {
+  // All 26 details on the path of value (0,0,0) just below t, with signs that add up there.
+  const float t = 1.0f;
+  haar::Block c;
+  for (auto& ch : c) ch.fill(0.0f);
+  for (int l = 1; l < 64; ++l) {
+    const int f[3] = {l & 3, (l >> 2) & 3, l >> 4};
+    bool on_path = true;
+    for (int a : f) on_path = on_path && a <= 2;  // frequencies 0, 1, 2 are on the path of position 0
+    if (on_path)
+      for (auto& ch : c) ch[l] = 0.999f;  // all basis values are +1 at position 0
+  }
+  for (auto& ch : c) ch[0] = 5.0f;
+  const std::uint64_t mask = haar::keep_mask(c, t);
+  CHECK(mask == 1u);
+  const float bound = haar::dropped_path_bound(c, mask);
+  CHECK(bound == Approx(26 * 0.999f));
+  haar::Block v = c;
+  for (auto& ch : v) lbh::haar_inverse_block(ch.data());
+  // full value at (0,0,0) minus the fast-path reconstruction (5.0) is exactly the bound
+  CHECK(v[0][0] - 5.0f == Approx(bound));
+}
+
+TEST_CASE("Encoding does not depend on the thread count", "[haar]") {
+  const Dims d{16, 9, 12};
+  const auto field = make_field(d, 5);
+  const LbhFrame f = frame_of(d);
+  std::string bytes[3];
+  int k = 0;
+  for (int threads : {1, 2, 7}) {
+    LbhEncoded e = encode_lbh_solution(f, {"B03", 3, {0, 1, 0}, &field}, {0.02, true}, threads);
+    bytes[k++] = serialize_lbh(f, {e});
+  }
+  CHECK(bytes[0] == bytes[1]);
+  CHECK(bytes[0] == bytes[2]);
+}
+
+// Reference: trilinear blend of the 8 nodes of the cell around lattice position p, taken from the
+// decoded 4^3 values of the one sub-block holding that cell (cell i = min(floor(u), n - 2) in block i / 3).
+lbh::Rgb trilinear_in_block(const lbh::Stream& s, double u, double v, double w) {
+  const lbh::Lattice& L = s.lattice();
+  double p[3] = {u, v, w};
+  int cell[3];
+  double a[3];
+  for (int k = 0; k < 3; ++k) {
+    p[k] = std::min(std::max(p[k], 0.0), static_cast<double>(L.n[k] - 1));
+    cell[k] = std::min(static_cast<int>(std::floor(p[k])), std::max(L.n[k] - 2, 0));
+    a[k] = p[k] - cell[k];
+  }
+  lbh::Rgb blk[64];
+  s.decode_block(0, lbh::block_index(L, cell[0] / 3, cell[1] / 3, cell[2] / 3), blk);
+  double out[3] = {0, 0, 0};
+  for (int c = 0; c < 8; ++c) {
+    const int x = cell[0] % 3 + (c & 1), y = cell[1] % 3 + (c >> 1 & 1), z = cell[2] % 3 + (c >> 2 & 1);
+    const double wt = (c & 1 ? a[0] : 1 - a[0]) * (c & 2 ? a[1] : 1 - a[1]) * (c & 4 ? a[2] : 1 - a[2]);
+    const lbh::Rgb& q = blk[x + 4 * y + 16 * z];
+    out[0] += wt * q.r;
+    out[1] += wt * q.g;
+    out[2] += wt * q.b;
+  }
+  return {static_cast<float>(out[0]), static_cast<float>(out[1]), static_cast<float>(out[2])};
+}
+
+TEST_CASE("Sampling the stream equals trilinear sampling of the decompressed data", "[haar][reader]") {
+  // Threshold 0: equal to trilinear sampling of the decompressed grid (float rounding). Lossy:
+  // equal to trilinear sampling of the decompressed sub-block that holds the cell; at nodes equal
+  // to the decompressed grid; between nodes next to a block's far face the forward border (decoded
+  // in this block) and the next block's own node (decoded there) may differ by the two errors.
+  for (const double rel : {0.0, 0.02}) {
+    for (const Dims d : {Dims{14, 11, 9}, Dims{2, 5, 1}, Dims{4, 7, 10}}) {
+      const Encoded e = encode(d, {rel, true}, 11, 0.1f);
+      const lbh::Stream s = open_ok(e.bytes);
+      const std::vector<float> dec = s.decode_all(0);
+      const lbh::Lattice& L = s.lattice();
+      const double scale = e.sols[0].max_abs_value, tol = 2e-6 * scale;
+      const double seam = 2 * e.sols[0].stats.max_abs_error_block + tol;
+      std::mt19937 rng(9);
+      std::uniform_real_distribution<double> ux(-2, d.nx + 1), uy(-2, d.ny + 1), uz(-2, d.nz + 1);
+      for (int i = 0; i < 3000; ++i) {
+        double p[3] = {ux(rng), uy(rng), uz(rng)};
+        if (i % 5 == 0) p[i % 3] = std::round(p[i % 3]);  // node and block faces
+        const lbh::Rgb got = lbh::sample_index(L, s.view(0), static_cast<float>(p[0] + L.index_min[0]),
+                                               static_cast<float>(p[1] + L.index_min[1]),
+                                               static_cast<float>(p[2] + L.index_min[2]));
+        const lbh::Rgb blk = trilinear_in_block(s, p[0], p[1], p[2]);
+        const lbh::Rgb grid = trilinear(dec, d, p[0], p[1], p[2]);
+        INFO("threshold " << rel << " at " << p[0] << ", " << p[1] << ", " << p[2]);
+        CHECK(got.r == Approx(blk.r).margin(tol));
+        CHECK(got.g == Approx(blk.g).margin(tol));
+        CHECK(got.b == Approx(blk.b).margin(tol));
+        CHECK(got.g == Approx(grid.g).margin(rel == 0.0 ? tol : seam));
+      }
+      // nodes sample to their decoded values; world positions through the transform
+      const auto& m = e.frame.index_to_world;
+      for (int z = 0; z < d.nz; ++z)
+        for (int y = 0; y < d.ny; ++y)
+          for (int x = 0; x < d.nx; ++x) {
+            const double ix = x + L.index_min[0], iy = y + L.index_min[1], iz = z + L.index_min[2];
+            const double w[3] = {m[0] * ix + m[1] * iy + m[2] * iz + m[3], m[4] * ix + m[5] * iy + m[6] * iz + m[7],
+                                 m[8] * ix + m[9] * iy + m[10] * iz + m[11]};
+            const lbh::Rgb a = s.sample_world(0, static_cast<float>(w[0]), static_cast<float>(w[1]),
+                                              static_cast<float>(w[2]));
+            const float* ref = &dec[d.index(x, y, z) * 3];
+            CHECK(a.r == Approx(ref[0]).margin(1e-5 * scale));
+            CHECK(a.b == Approx(ref[2]).margin(1e-5 * scale));
+          }
+    }
+  }
+}
+
+TEST_CASE("Decoding one sub-block gives its 4^3 nodes with the forward border", "[haar][reader]") {
+  const Dims d{8, 6, 5};  // 3 x 2 x 2 blocks; the last ones clamp
+  const Encoded e = encode(d, {0.0, false});
+  const lbh::Stream s = open_ok(e.bytes);
+  CHECK(s.lattice().nb[0] == 3);
+  CHECK(s.lattice().nb[1] == 2);
+  CHECK(s.lattice().nb[2] == 2);
+  lbh::Rgb blk[64];
+  const int bx = 2, by = 1, bz = 1;
+  s.decode_block(0, lbh::block_index(s.lattice(), bx, by, bz), blk);
+  for (int z = 0; z < 4; ++z)
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 4; ++x) {
+        const std::size_t n = d.index(std::min(3 * bx + x, d.nx - 1), std::min(3 * by + y, d.ny - 1),
+                                      std::min(3 * bz + z, d.nz - 1));
+        CHECK(blk[x + 4 * y + 16 * z].g == Approx(e.field[1][n]).margin(1e-5));
+      }
+}
+
+TEST_CASE("Reader sun decomposition matches lblight's", "[reader]") {
+  std::mt19937 rng(4);
+  std::normal_distribution<double> g;
+  for (int i = 0; i < 2000; ++i) {
+    Vec3d d{g(rng), g(rng), g(rng)};
+    if (i < 6) d = {i == 0 ? 1.0 : 0.0, i == 1 ? 1.0 : 0.0, i == 2 ? -1.0 : 0.3};
+    const SunWeights a = decompose_direction(d);
+    const lbh::SunWeights b = lbh::decompose_direction(d.x, d.y, d.z);
+    // compare as 18-vectors (a face tie may list directions in another order)
+    std::array<double, 19> wa{}, wb{};
+    for (int k = 0; k < 3; ++k) {
+      wa[a.direction[k]] += a.weight[k];
+      wb[b.direction[k]] += b.weight[k];
+    }
+    for (int m = 0; m < 19; ++m) CHECK(wb[m] == Approx(wa[m]).margin(1e-6));
+  }
+  CHECK(lbh::decompose_direction(0, 0, 0).direction[0] == 0);
+}
+
+TEST_CASE("Relighting blends three directional solutions and the ambient one", "[reader]") {
+  const Dims d{10, 8, 7};
+  const LbhFrame f = frame_of(d);
+  std::vector<std::array<std::vector<float>, 3>> fields;
+  for (unsigned k = 0; k < 19; ++k) fields.push_back(make_field(d, 100 + k));
+  std::vector<LbhEncoded> sols;
+  for (int k = 0; k < 19; ++k) {
+    char name[8];
+    std::snprintf(name, sizeof name, "B%02d", k);
+    sols.push_back(encode_lbh_solution(f, {name, k, {lbh::lattice_cx(k), lbh::lattice_cy(k), lbh::lattice_cz(k)}, &fields[k]},
+                                       {0.01, true}, 1));
+  }
+  const std::string bytes = serialize_lbh(f, sols);
+  lbh::Stream s = open_ok(bytes);
+  const Vec3d travel{0.3, -0.5, -0.8};
+  const SunWeights w = decompose_direction(travel);
+  lbh::Relighter r;
+  REQUIRE(s.make_relighter(travel.x, travel.y, travel.z, 2.0f, 0.25f, r) == lbh::Status::Ok);
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<float> u(0, 9);
+  for (int i = 0; i < 200; ++i) {
+    const float p[3] = {u(rng) - 3, u(rng) + 5, u(rng) + 7};
+    const lbh::Rgb got = lbh::relight_index(s.lattice(), r, p[0], p[1], p[2]);
+    double ref[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k) {
+      const lbh::Rgb v = s.sample_index(static_cast<std::size_t>(s.find(w.direction[k])), p[0], p[1], p[2]);
+      ref[0] += 2.0 * w.weight[k] * v.r;
+      ref[1] += 2.0 * w.weight[k] * v.g;
+      ref[2] += 2.0 * w.weight[k] * v.b;
+    }
+    const lbh::Rgb amb = s.sample_index(static_cast<std::size_t>(s.find(0)), p[0], p[1], p[2]);
+    CHECK(got.r == Approx(ref[0] + 0.25 * amb.r).epsilon(1e-5));
+    CHECK(got.g == Approx(ref[1] + 0.25 * amb.g).epsilon(1e-5));
+    CHECK(got.b == Approx(ref[2] + 0.25 * amb.b).epsilon(1e-5));
+  }
+  // a stream without the needed directions says so
+  lbh::Stream one = open_ok(serialize_lbh(f, {sols[0]}));
+  CHECK(one.make_relighter(0, 0, -1, 1, 0, r) == lbh::Status::BadHeader);
+  CHECK(one.error().find("base solution 6") != std::string::npos);
+}
+
+TEST_CASE("CRC-32 is zlib's", "[reader]") {
+  CHECK(lbh::crc32("123456789", 9) == 0xCBF43926u);
+  CHECK(lbh::crc32("", 0) == 0u);
+}
+
+TEST_CASE("Reader rejects truncated, corrupted, wrong-version and oversized files", "[reader]") {
+  const Encoded e = encode({5, 4, 3}, {0.05, true});
+  const std::string good = e.bytes;
+  open_ok(good);
+  auto status_of = [](const std::string& b, std::string* msg = nullptr) {
+    lbh::Stream s;
+    const lbh::Status st = s.open_memory(b.data(), b.size());
+    if (msg) *msg = s.error();
+    if (st != lbh::Status::Ok) {
+      CHECK_FALSE(s.ok());
+      CHECK(s.error().rfind("lbh: ", 0) == 0);
+    }
+    return st;
+  };
+  std::string msg;
+
+  SECTION("every truncation") {
+    for (std::size_t n = 0; n < good.size(); ++n) {
+      const lbh::Status st = status_of(good.substr(0, n));
+      INFO("length " << n);
+      CHECK(st != lbh::Status::Ok);
+      if (n >= 16) CHECK(st == lbh::Status::Truncated);
+    }
+    CHECK(status_of(good.substr(0, 100), &msg) == lbh::Status::Truncated);
+    CHECK(msg.find("256") != std::string::npos);
+    CHECK(status_of(good + std::string(8, '\0')) == lbh::Status::BadHeader);  // trailing bytes
+  }
+  SECTION("every single-byte corruption") {
+    for (std::size_t i = 0; i < good.size(); ++i) {
+      std::string b = good;
+      b[i] = static_cast<char>(b[i] ^ 0x5A);
+      INFO("byte " << i);
+      CHECK(status_of(b) != lbh::Status::Ok);
+    }
+  }
+  SECTION("checksums") {
+    std::string b = good;
+    const std::uint64_t coeffs = lbh::detail::rd64(reinterpret_cast<const unsigned char*>(b.data()) + 256 + 80);
+    b[coeffs + 5] ^= 1;
+    CHECK(status_of(b, &msg) == lbh::Status::ChecksumMismatch);
+    CHECK(msg.find("coefficients CRC-32") != std::string::npos);
+    b = good;
+    b[300] ^= 1;  // inside the table entry (threshold fields)
+    CHECK(status_of(b, &msg) == lbh::Status::ChecksumMismatch);
+    b = good;
+    b[130] ^= 1;  // index_to_world
+    CHECK(status_of(b, &msg) == lbh::Status::ChecksumMismatch);
+    CHECK(msg.find("header CRC-32") != std::string::npos);
+  }
+  SECTION("wrong version, magic, endianness") {
+    std::string b = good;
+    put32(b, 8, 2);
+    fix_header_crc(b);
+    CHECK(status_of(b, &msg) == lbh::Status::UnsupportedVersion);
+    CHECK(msg.find("version 2") != std::string::npos);
+    b = good;
+    put32(b, 8, 0);
+    CHECK(status_of(b) == lbh::Status::UnsupportedVersion);
+    b = good;
+    b[1] = 'X';
+    CHECK(status_of(b) == lbh::Status::BadMagic);
+    b = good;
+    for (int k = 0; k < 4; ++k) b[12 + k] = static_cast<char>(1 + k);  // 0x01020304 stored big-endian
+    CHECK(status_of(b) == lbh::Status::UnsupportedEndianness);
+  }
+  SECTION("oversized counts, even with valid checksums") {
+    std::string b = good;
+    put64(b, 256 + 56, 0xFFFFFFFFFFFFull);  // coefficient count
+    fix_table_crc(b);
+    CHECK(status_of(b, &msg) == lbh::Status::CountOutOfRange);
+    CHECK(msg.find("coefficient count") != std::string::npos);
+    b = good;
+    put64(b, 256 + 48, 1ull << 62);  // block count
+    fix_table_crc(b);
+    CHECK(status_of(b) == lbh::Status::CountOutOfRange);
+    b = good;
+    put32(b, 32, 0xFFFFFFFFu);  // solution count
+    fix_header_crc(b);
+    CHECK(status_of(b) == lbh::Status::CountOutOfRange);
+    b = good;
+    put32(b, 32, 3);  // more solutions than the table holds
+    fix_header_crc(b);
+    CHECK(status_of(b) != lbh::Status::Ok);
+    b = good;
+    put32(b, 40, 0x7FFFFFFFu);  // a huge dimension
+    fix_header_crc(b);
+    CHECK(status_of(b, &msg) == lbh::Status::CountOutOfRange);
+    b = good;  // huge dims with matching sub-block counts: the block count cannot fit the file
+    const std::uint32_t big = 1u << 20;
+    for (int a = 0; a < 3; ++a) {
+      put32(b, 40 + 4 * a, big);
+      put32(b, 64 + 4 * a, lbh::detail::blocks_for(static_cast<std::int32_t>(big)));
+    }
+    fix_header_crc(b);
+    CHECK(status_of(b) == lbh::Status::CountOutOfRange);
+    b = good;
+    put64(b, 24, 1ull << 40);  // declared file size larger than the file
+    fix_header_crc(b);
+    CHECK(status_of(b) == lbh::Status::Truncated);
+  }
+  SECTION("inconsistent masks and offsets behind valid checksums") {
+    std::string b = good;
+    auto* p = reinterpret_cast<const unsigned char*>(b.data());
+    const std::uint64_t masks = lbh::detail::rd64(p + 256 + 64), offsets = lbh::detail::rd64(p + 256 + 72);
+    put64(b, masks, lbh::detail::rd64(p + masks) & ~1ull);  // drop the average bit of block 0
+    put32(b, 256 + 88, lbh::crc32(b.data() + masks, lbh::detail::rd64(p + 256 + 48) * 8));
+    fix_table_crc(b);
+    CHECK(status_of(b) == lbh::Status::Inconsistent);
+    b = good;
+    put32(b, offsets + 4, 1000);  // block 1 pointing past its place
+    put32(b, 256 + 92, lbh::crc32(b.data() + offsets, lbh::detail::rd64(p + 256 + 48) * 4));
+    fix_table_crc(b);
+    CHECK(status_of(b) == lbh::Status::Inconsistent);
+  }
+  SECTION("files") {
+    lbh::Stream s;
+    CHECK(s.open_file("/nonexistent/dir/x.lbh") == lbh::Status::IoError);
+    CHECK(s.error().find("x.lbh") != std::string::npos);
+  }
+}
+
+TEST_CASE("Random garbage never opens and never crashes the reader", "[reader]") {
+  const Encoded e = encode({7, 6, 4}, {0.01, true});
+  std::mt19937 rng(12);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int trial = 0; trial < 300; ++trial) {
+    std::string b = e.bytes;
+    const int flips = 1 + trial % 8;
+    for (int k = 0; k < flips; ++k) b[rng() % b.size()] = static_cast<char>(byte(rng));
+    if (trial % 3 == 0) b.resize(rng() % (b.size() + 1));
+    lbh::Stream s;
+    if (b == e.bytes) continue;
+    CHECK(s.open_memory(b.data(), b.size()) != lbh::Status::Ok);
+  }
+}
