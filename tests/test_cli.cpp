@@ -17,7 +17,7 @@ namespace {
 const char* kTinyScene = R"({
   "version": 1, "name": "tiny",
   "models": [{"name": "cloud", "density": {"type": "procedural", "shape": "cloud", "resolution": 10},
-              "material": "cloud"}],
+              "material": "cloud", "crop": false}],
   "lighting": {"mode": "base", "solutions": "0,1,5"},
   "solver": {"iterations": "paper"}
 })";

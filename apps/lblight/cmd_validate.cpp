@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <iostream>
 #include <sstream>
 
@@ -29,6 +30,33 @@ std::string channel_line(const Material& m) {
     s << (c ? " | " : "") << kChannelNames[c] << " sigma_a " << p.sigma_a << " sigma_s " << p.sigma_s << " g " << p.g;
   }
   return s.str();
+}
+
+// What the plan leaves out, one line each (nothing when it bakes everything).
+std::string savings_lines(const ModelPlan& mp) {
+  const PlanSavings& sv = mp.savings;
+  std::ostringstream t;
+  if (!sv.solutions_left_out.empty()) {
+    t << "  left out: " << sv.solutions_left_out.size() << " solution(s)";
+    for (int idx : sv.solutions_left_out) t << " " << base_grid_name(idx);
+    t << " (no sun the scene allows selects them)\n";
+  }
+  if (sv.ambient_from_sum) t << "  B00 from the sum of B01..B18 (empty boundary layer, spec sec. 4): not solved\n";
+  if (sv.channels_solved < kChannels)
+    t << "  " << sv.channels_solved << " channel(s) solved for R, G, B (channels with equal materials share one)\n";
+  if (sv.cropped) {
+    const Dims& f = sv.full_lattice;
+    const Dims& d = mp.lattice.dims;
+    t << "  lattice cropped to the occupied nodes plus margin: " << f.nx << "x" << f.ny << "x" << f.nz << " -> " << d.nx
+      << "x" << d.ny << "x" << d.nz << " (" << static_cast<int>(std::lround(100.0 * d.count() / f.count()))
+      << "% of the nodes)\n";
+  }
+  const double work = savings_json(mp)["work_fraction"].get<double>();
+  if (work < 0.9995) {
+    t.precision(3);
+    t << "  work: " << 100.0 * work << "% of 19 solutions x 3 channels on the full lattice\n";
+  }
+  return t.str();
 }
 
 int run_validate(const ValidateArgs& args) {
@@ -76,6 +104,7 @@ int run_validate(const ValidateArgs& args) {
            << ": " << channel_line(mp.spec->wood_material) << "\n";
     text << "  solutions (" << mp.solutions.size() << "): " << sols << "; " << mp.channels.size()
          << " distinct channel(s) each\n";
+    text << savings_lines(mp);
     text << "  steps: " << to_string(mp.steps.mode);
     if (mp.steps.mode == IterationMode::Auto)
       text << ", tolerance " << mp.steps.tolerance << ", check every " << mp.steps.check_interval << ", min "
@@ -102,6 +131,7 @@ int run_validate(const ValidateArgs& args) {
     m["solutions"] = nlohmann::json::array();
     for (const SolutionPlan& s : mp.solutions) m["solutions"].push_back(s.grid_name);
     m["distinct_channels"] = mp.channels.size();
+    m["savings"] = savings_json(mp);
     m["steps"] = {{"mode", to_string(mp.steps.mode)}, {"estimated_per_solution", mp.estimated_steps}};
     m["memory_bytes"] = memory;
     m["estimated_seconds"] = seconds;

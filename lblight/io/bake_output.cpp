@@ -1,5 +1,6 @@
 #include "lblight/io/bake_output.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <ctime>
@@ -58,6 +59,26 @@ nlohmann::json lattice_json(const ModelPlan& mp) {
   return j;
 }
 
+nlohmann::json savings_json(const ModelPlan& mp) {
+  const PlanSavings& sv = mp.savings;
+  const Dims& f = sv.full_lattice;
+  const Dims& d = mp.lattice.dims;
+  nlohmann::json j;
+  nlohmann::json left = nlohmann::json::array();
+  for (int idx : sv.solutions_left_out) left.push_back(base_grid_name(idx));
+  j["solutions_left_out"] = left;
+  j["solutions_solved"] = mp.solved_solutions();
+  j["ambient_from_sum"] = sv.ambient_from_sum;
+  j["channels_solved"] = sv.channels_solved;
+  j["cropped"] = sv.cropped;
+  j["full_lattice_dims"] = {f.nx, f.ny, f.nz};
+  j["lattice_node_fraction"] = f.count() > 0 ? static_cast<double>(d.count()) / static_cast<double>(f.count()) : 1.0;
+  // Lattice updates relative to baking 19 solutions x 3 channels on the uncropped lattice.
+  j["work_fraction"] = static_cast<double>(mp.systems()) * static_cast<double>(d.interior_count()) /
+                       (19.0 * 3.0 * static_cast<double>(std::max<std::size_t>(1, f.interior_count())));
+  return j;
+}
+
 BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info)
     : plan_(plan), dir_(target), info_(std::move(info)) {}
 
@@ -66,6 +87,10 @@ void BakeOutput::add(const ModelPlan&, SolutionResult& result) { pending_.push_b
 void BakeOutput::set_peak_bytes(const ModelPlan&, std::size_t bytes) { peak_bytes_ = std::max(peak_bytes_, bytes); }
 
 void BakeOutput::finish_model(const ModelPlan& mp) {
+  // Grids in index order (a B00 summed from the others arrives last).
+  std::stable_sort(pending_.begin(), pending_.end(),
+                   [](const SolutionResult& a, const SolutionResult& b) { return a.plan.index < b.plan.index; });
+  const bool write_grids = plan_.scene->output.vdb;
   const std::string file_name = mp.spec->name + ".vdb";
   DenseFrame frame{mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world};
   const nlohmann::json lattice_box = {{"lblight_lattice_min", mp.lattice_index_min},
@@ -84,7 +109,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
 
   nlohmann::json model;
   model["name"] = mp.spec->name;
-  model["file"] = file_name;
+  model["file"] = write_grids ? nlohmann::json(file_name) : nlohmann::json(nullptr);
   model["source"] = mp.grid.description;
   model["lattice"] = lattice_json(mp);
   model["materials"] = {{"medium", material_json(mp.spec->material)}};
@@ -92,6 +117,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["occupied_nodes"] = mp.stats.occupied;
   model["wood_nodes"] = mp.stats.wood;
   model["distinct_channels"] = mp.channels.size();
+  model["savings"] = savings_json(mp);
   model["steps"] = {{"mode", to_string(mp.steps.mode)},
                     {"method", to_string(mp.steps.method)},
                     {"tolerance", mp.steps.tolerance},
@@ -132,8 +158,9 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     s["index"] = r.plan.index;
     s["direction"] = r.plan.direction;
     s["grid"] = r.plan.grid_name;
-    s["file"] = file_name;
+    s["file"] = model["file"];
     s["iterations"] = r.iterations;
+    if (r.plan.derived) s["derived"] = "sum of B01..B18 (spec sec. 4); iterations: the largest of theirs";
     s["seconds"] = r.seconds;
     s["error_estimate"] = finite_or_null(r.error_estimate);
     s["error_estimate_max"] = finite_or_null(r.error_estimate_max);
@@ -151,7 +178,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
                                     {"lblight_model", mp.spec->name},
                                     {"lblight_scene_hash", plan_.scene->hash}};
-  write_vdb(dir_.path(file_name), frame, grids, file_meta);
+  if (write_grids) write_vdb(dir_.path(file_name), frame, grids, file_meta);
   pending_.clear();
   peak_bytes_ = 0;
   models_.push_back(model);

@@ -48,6 +48,7 @@ class BakeOutput {
 // Manifest pieces shared with `validate --json` and `inspect`.
 nlohmann::json material_json(const Material& m);
 nlohmann::json lattice_json(const ModelPlan& model);
+nlohmann::json savings_json(const ModelPlan& model);  // what the plan leaves out
 std::array<double, 3> lattice_origin_world(const ModelPlan& model);
 
 }  // namespace lblight

@@ -12,6 +12,7 @@
 #include "lblight/backend/backend.h"
 #include "lblight/core/error.h"
 #include "lblight/lattice/sun.h"
+#include "lblight/lattice/sun_coverage.h"
 #include "lblight/scene/material.h"
 
 namespace lblight {
@@ -58,6 +59,7 @@ struct ModelSpec {
   Material material;       // medium / leaf ("green") nodes: material index 0
   Material wood_material;  // wood ("brown") nodes: material index 1
   int margin = 1;
+  bool crop = true;  // shrink the lattice to the occupied nodes plus margin (same interior results)
   std::string json_path;
 };
 
@@ -66,6 +68,9 @@ enum class LightingMode { Base, Static };
 struct LightingSpec {
   LightingMode mode = LightingMode::Base;
   std::vector<int> solutions;  // base: indices 0..18 to bake (sorted, unique)
+  bool solutions_from_sun = true;  // base: `solutions` follow from `sun_constraints` ("auto")
+  SunConstraints sun_constraints;  // base: what relighting may ask for (spec sec. 4)
+  bool ambient_from_sum = true;    // base: B_0 as the sum of B_1..B_18 when all of those run
   Vec3d toward_sun{0, 0, 1};   // static: unit vector toward the sun
   double intensity = 1.0;      // static: sun intensity s
   double ambient = 0.0;        // static: ambient level a
@@ -94,6 +99,7 @@ struct LbhOutputSpec {
 };
 
 struct OutputSpec {
+  bool vdb = true;  // the base-solution grids as OpenVDB (density is always written with them)
   LbhOutputSpec lbh;
 };
 

@@ -215,7 +215,7 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
 }
 
 ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
-  r.only_keys({"name", "density", "material", "wood_material", "margin"});
+  r.only_keys({"name", "density", "material", "wood_material", "margin", "crop"});
   ModelSpec m;
   m.json_path = r.path();
   m.name = r.string("name");
@@ -225,6 +225,7 @@ ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
   m.material = read_material(r.child("material"));
   m.wood_material = r.has("wood_material") ? read_material(r.child("wood_material")) : default_wood_for(m.material);
   m.margin = static_cast<int>(r.integer_or("margin", 1, 1, 64));
+  m.crop = r.boolean_or("crop", true);
   return m;
 }
 
@@ -235,48 +236,91 @@ Vec3d read_vec3(const JsonReader& r) {
   return v;
 }
 
+// {"direction": [x, y, z]} or {"elevation": deg, "azimuth": deg}: a unit vector toward the sun.
+Vec3d read_sun(const JsonReader& sun) {
+  sun.expect_object();
+  if (sun.has("direction")) {
+    sun.only_keys({"direction"});
+    Vec3d d = read_vec3(sun.child("direction"));
+    const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    if (!(len > 0)) sun.fail("sun direction must be non-zero", "direction");
+    return {d.x / len, d.y / len, d.z / len};
+  }
+  sun.only_keys({"elevation", "azimuth"});
+  const double el = sun.number("elevation", -90, 90, "-90..90 degrees");
+  const double az = sun.number("azimuth", -360, 360, "-360..360 degrees");
+  return toward_sun_from_angles(el, az);
+}
+
+// Base lighting: which solutions to bake, either listed ("all", "0,1,5-7", [0, 6]) or "auto":
+// the ones the declared sun range, fixed sun and instance rotation can select (spec sec. 4).
+void read_base_lighting(const JsonReader& r, LightingSpec& l) {
+  r.only_keys({"mode", "solutions", "sun_range", "sun", "instance_rotation", "ambient", "ambient_from_sum"});
+  l.mode = LightingMode::Base;
+  SunConstraints& c = l.sun_constraints;
+  if (r.has("sun_range")) {
+    const JsonReader sr = r.child("sun_range");
+    sr.expect_object();
+    sr.only_keys({"min_elevation", "max_elevation"});
+    c.min_elevation = sr.number_or("min_elevation", -90.0, -90.0, 90.0, "-90..90 degrees");
+    c.max_elevation = sr.number_or("max_elevation", 90.0, -90.0, 90.0, "-90..90 degrees");
+    if (c.max_elevation < c.min_elevation) sr.fail("max_elevation must be >= min_elevation", "max_elevation");
+  }
+  if (r.has("sun")) {
+    if (r.has("sun_range")) r.fail("give either a fixed sun or a sun_range, not both", "sun");
+    c.fixed_toward_sun = read_sun(r.child("sun"));
+  }
+  const std::string rot = r.string_or("instance_rotation", "none");
+  if (rot == "any") c.rotation = InstanceRotation::Any;
+  else if (rot == "yaw") c.rotation = InstanceRotation::Yaw;
+  else if (rot == "none") c.rotation = InstanceRotation::None;
+  else r.fail("unknown instance_rotation '" + rot + "'; allowed: none, yaw (about the vertical axis), any", "instance_rotation");
+  c.ambient = r.boolean_or("ambient", true);
+  l.ambient_from_sum = r.boolean_or("ambient_from_sum", true);
+
+  const bool constrained = r.has("sun_range") || r.has("sun") || r.has("ambient");
+  std::string listed = "auto";
+  if (r.has("solutions")) {
+    const JsonReader s = r.child("solutions");
+    if (s.json().is_string()) {
+      listed = s.json().get<std::string>();
+      if (listed != "auto") l.solutions = parse_solution_list(listed, s.location());
+    } else if (s.json().is_array()) {
+      std::string text;
+      for (std::size_t i = 0; i < s.json().size(); ++i) {
+        const JsonReader e = s.element(i);
+        if (!e.json().is_number_integer()) e.fail("expected a solution index 0..18, found " + JsonReader::describe(e.json()));
+        text += (i ? "," : "") + std::to_string(e.json().get<long long>());
+      }
+      l.solutions = parse_solution_list(text, s.location());
+      listed = text;
+    } else {
+      s.fail("expected \"auto\", \"all\", a string like \"0,1,5-7\" or a list of indices");
+    }
+    if (listed != "auto" && constrained)
+      s.fail("the solutions are listed and also follow from sun/sun_range/ambient; give one of them "
+             "(\"solutions\": \"auto\" bakes what the sun declarations need)");
+  }
+  l.solutions_from_sun = listed == "auto";
+  if (l.solutions_from_sun) {
+    const std::array<bool, 19> need = needed_base_solutions(c);
+    l.solutions.clear();
+    for (int j = 0; j < 19; ++j)
+      if (need[static_cast<std::size_t>(j)]) l.solutions.push_back(j);
+    if (l.solutions.empty()) r.fail("no base solution is needed (no sun direction in range and ambient false)");
+  }
+}
+
 LightingSpec read_lighting(const JsonReader& r) {
   LightingSpec l;
   r.expect_object();
   const std::string mode = r.string_or("mode", "base");
   if (mode == "base") {
-    r.only_keys({"mode", "solutions"});
-    l.mode = LightingMode::Base;
-    if (r.has("solutions")) {
-      const JsonReader s = r.child("solutions");
-      if (s.json().is_string()) {
-        l.solutions = parse_solution_list(s.json().get<std::string>(), s.location());
-      } else if (s.json().is_array()) {
-        std::string text;
-        for (std::size_t i = 0; i < s.json().size(); ++i) {
-          const JsonReader e = s.element(i);
-          if (!e.json().is_number_integer()) e.fail("expected a solution index 0..18, found " + JsonReader::describe(e.json()));
-          text += (i ? "," : "") + std::to_string(e.json().get<long long>());
-        }
-        l.solutions = parse_solution_list(text, s.location());
-      } else {
-        s.fail("expected \"all\", a string like \"0,1,5-7\" or a list of indices");
-      }
-    } else {
-      l.solutions = parse_solution_list("all", r.location());
-    }
+    read_base_lighting(r, l);
   } else if (mode == "static") {
     r.only_keys({"mode", "sun", "intensity", "ambient"});
     l.mode = LightingMode::Static;
-    const JsonReader sun = r.child("sun");
-    sun.expect_object();
-    if (sun.has("direction")) {
-      sun.only_keys({"direction"});
-      Vec3d d = read_vec3(sun.child("direction"));
-      const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-      if (!(len > 0)) sun.fail("sun direction must be non-zero", "direction");
-      l.toward_sun = {d.x / len, d.y / len, d.z / len};
-    } else {
-      sun.only_keys({"elevation", "azimuth"});
-      const double el = sun.number("elevation", -90, 90, "-90..90 degrees");
-      const double az = sun.number("azimuth", -360, 360, "-360..360 degrees");
-      l.toward_sun = toward_sun_from_angles(el, az);
-    }
+    l.toward_sun = read_sun(r.child("sun"));
     l.intensity = r.number_or("intensity", 1.0, 0.0, 1e30, "intensity >= 0");
     l.ambient = r.number_or("ambient", 0.0, 0.0, 1e30, "ambient >= 0");
   } else {
@@ -322,15 +366,21 @@ SolverSpec read_solver(const JsonReader& r) {
   return s;
 }
 
-// "output": {"lbh": {"threshold": T, "relative": true|false}}; "lbh": true takes the defaults.
+// "output": {"vdb": true|false, "lbh": {"threshold": T, "relative": true|false}}; "lbh": true
+// takes the defaults.
 OutputSpec read_output(const JsonReader& r) {
   r.expect_object();
-  r.only_keys({"lbh"});
+  r.only_keys({"vdb", "lbh"});
   OutputSpec out;
-  if (!r.has("lbh")) return out;
+  out.vdb = r.boolean_or("vdb", true);
+  if (!r.has("lbh")) {
+    if (!out.vdb) r.fail("nothing to write: vdb is false and no lbh output is asked for", "vdb");
+    return out;
+  }
   const JsonReader lbh = r.child("lbh");
   if (lbh.json().is_boolean()) {
     out.lbh.enabled = lbh.json().get<bool>();
+    if (!out.vdb && !out.lbh.enabled) r.fail("nothing to write: vdb and lbh are both false", "vdb");
     return out;
   }
   if (!lbh.json().is_object())
@@ -376,7 +426,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
     scene.models.push_back(std::move(m));
   }
   if (root.has("lighting")) scene.lighting = read_lighting(root.child("lighting"));
-  else scene.lighting.solutions = parse_solution_list("all", root.location());
+  else scene.lighting.solutions = parse_solution_list("all", root.location());  // "auto" with no constraints
   if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
   if (root.has("output")) scene.output = read_output(root.child("output"));
   scene.hash = "fnv1a64:" + hex64(fnv1a64(j.dump()));

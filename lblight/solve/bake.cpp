@@ -167,6 +167,78 @@ struct SystemRef {
   int channel;   // index into mp.channels
 };
 
+// B_0 assembled from the directional solutions as they finish (spec sec. 4). Interior nodes:
+// the sum; boundary nodes: B_0's own fixed total, 19 (the sum of its boundary values, where the
+// directional ones give 1 each). Error bound: ||sum e_j|| <= sum eps_j ||B_j||, over ||B_0||.
+class AmbientSum {
+ public:
+  AmbientSum(const ModelPlan& mp) : mp_(mp) {
+    for (const SolutionPlan& s : mp.solutions)
+      if (s.derived) plan_ = &s;
+    if (!plan_) return;
+    for (auto& c : sum_) c.assign(mp.lattice.dims.count(), 0.0);
+  }
+  bool wanted() const { return plan_ != nullptr; }
+
+  void add(const SolutionResult& r) {
+    if (!plan_ || r.plan.index < 1) return;
+    const auto t0 = Clock::now();
+    double norm_sq = 0, peak = 0;
+    for (int c = 0; c < kChannels; ++c) {
+      const std::vector<float>& t = r.totals[c];
+      for (std::size_t i = 0; i < t.size(); ++i) {
+        sum_[c][i] += t[i];
+        norm_sq += static_cast<double>(t[i]) * t[i];
+        peak = std::max(peak, static_cast<double>(t[i]));
+      }
+    }
+    bound_ += r.error_estimate * std::sqrt(norm_sq);
+    bound_max_ += r.error_estimate_max * peak;
+    iterations_ = std::max(iterations_, r.iterations);
+    converged_ = converged_ && r.converged;
+    ++count_;
+    seconds_ += std::chrono::duration<double>(Clock::now() - t0).count();
+  }
+
+  // After all 18 directional solutions.
+  void finish(BakeObserver& observer) {
+    if (!plan_) return;
+    if (count_ != 18) throw Error(ErrorCategory::Internal, "B00 from the sum: expected 18 directional solutions");
+    const auto t0 = Clock::now();
+    SolutionResult r;
+    r.plan = *plan_;
+    const Dims& d = mp_.lattice.dims;
+    double norm_sq = 0, max_value = 0;
+    for (int c = 0; c < kChannels; ++c) {
+      r.totals[c].resize(d.count());
+      for (int z = 0; z < d.nz; ++z)
+        for (int y = 0; y < d.ny; ++y)
+          for (int x = 0; x < d.nx; ++x) {
+            const std::size_t i = d.index(x, y, z);
+            const double v = d.is_boundary(x, y, z) ? 19.0 : sum_[c][i];
+            r.totals[c][i] = static_cast<float>(v);
+            norm_sq += v * v;
+            max_value = std::max(max_value, v);
+          }
+    }
+    r.iterations = iterations_;
+    r.converged = converged_;
+    r.error_estimate = norm_sq > 0 ? bound_ / std::sqrt(norm_sq) : 0.0;
+    r.error_estimate_max = max_value > 0 ? bound_max_ / max_value : 0.0;
+    r.seconds = seconds_ + std::chrono::duration<double>(Clock::now() - t0).count();
+    for (auto& c : sum_) std::vector<double>().swap(c);
+    observer.solution_done(mp_, r);
+  }
+
+ private:
+  const ModelPlan& mp_;
+  const SolutionPlan* plan_ = nullptr;
+  std::array<std::vector<double>, 3> sum_;
+  double bound_ = 0, bound_max_ = 0, seconds_ = 0;
+  int iterations_ = 0, count_ = 0;
+  bool converged_ = true;
+};
+
 }  // namespace
 
 void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer) {
@@ -181,7 +253,9 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
 
   std::vector<SystemRef> queue;
   for (int s = 0; s < static_cast<int>(mp.solutions.size()); ++s)
-    for (int c = 0; c < static_cast<int>(mp.channels.size()); ++c) queue.push_back({s, c});
+    if (!mp.solutions[static_cast<std::size_t>(s)].derived)
+      for (int c = 0; c < static_cast<int>(mp.channels.size()); ++c) queue.push_back({s, c});
+  AmbientSum ambient(mp);
 
   // Per solution, what its channels have produced so far (channels may run in separate batches
   // when memory is short or a Krylov solver takes one system at a time).
@@ -245,10 +319,12 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       r.history = std::move(p.history);
       for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
       p = Pending{};
+      ambient.add(r);
       observer.solution_done(mp, r);
     }
     start = end;
   }
+  ambient.finish(observer);
 }
 
 }  // namespace lblight

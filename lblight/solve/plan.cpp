@@ -16,6 +16,44 @@ std::string base_grid_name(int index) {
   return buf;
 }
 
+std::size_t ModelPlan::solved_solutions() const {
+  std::size_t n = 0;
+  for (const SolutionPlan& s : solutions) n += s.derived ? 0 : 1;
+  return n;
+}
+
+ModelGrid crop_to_occupied(const ModelGrid& g) {
+  int lo[3] = {g.dims.nx, g.dims.ny, g.dims.nz}, hi[3] = {-1, -1, -1};
+  for (int k = 0; k < g.dims.nz; ++k)
+    for (int j = 0; j < g.dims.ny; ++j)
+      for (int i = 0; i < g.dims.nx; ++i)
+        if (g.density[g.dims.index(i, j, k)] > 0.0f) {
+          const int p[3] = {i, j, k};
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+          }
+        }
+  if (hi[0] < 0) return g;
+  const Dims d{hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
+  if (d.count() == g.dims.count()) return g;
+  ModelGrid c;
+  c.dims = d;
+  for (int a = 0; a < 3; ++a) c.index_min[a] = g.index_min[a] + lo[a];
+  c.index_to_world = g.index_to_world;
+  c.description = g.description;
+  c.density.resize(d.count());
+  c.material.resize(d.count());
+  for (int k = 0; k < d.nz; ++k)
+    for (int j = 0; j < d.ny; ++j)
+      for (int i = 0; i < d.nx; ++i) {
+        const std::size_t src = g.dims.index(i + lo[0], j + lo[1], k + lo[2]);
+        c.density[d.index(i, j, k)] = g.density[src];
+        c.material[d.index(i, j, k)] = g.material[src];
+      }
+  return c;
+}
+
 LatticeGeometry build_lattice(const ModelGrid& g, int margin) {
   LatticeGeometry lat;
   lat.dims = {g.dims.nx + 2 * margin, g.dims.ny + 2 * margin, g.dims.nz + 2 * margin};
@@ -94,6 +132,12 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
     mp.spec = &spec;
     mp.grid = load_model_grid(spec, scene);
     mp.stats = check_stability(spec, mp.grid, scene, plan.warnings);
+    const Dims full = mp.grid.dims;
+    mp.savings.full_lattice = {full.nx + 2 * spec.margin, full.ny + 2 * spec.margin, full.nz + 2 * spec.margin};
+    if (spec.crop) {
+      mp.grid = crop_to_occupied(mp.grid);
+      mp.savings.cropped = mp.grid.dims.count() != full.count();
+    }
     mp.lattice = build_lattice(mp.grid, spec.margin);
     for (int c = 0; c < 3; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
 
@@ -113,6 +157,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
       }
       mp.channel_of[c] = found;
     }
+    mp.savings.channels_solved = static_cast<int>(mp.channels.size());
 
     if (scene.lighting.mode == LightingMode::Static) {
       if (ov.solutions) throw_invalid("--solutions applies to base lighting; this scene bakes static lighting",
@@ -126,12 +171,23 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
       s.boundary = b;
       mp.solutions.push_back(s);
     } else {
-      for (int idx : ov.solutions.value_or(scene.lighting.solutions)) {
+      const std::vector<int>& wanted = ov.solutions.value_or(scene.lighting.solutions);
+      bool all_directional = true;
+      for (int j = 1; j < 19; ++j)
+        all_directional = all_directional && std::find(wanted.begin(), wanted.end(), j) != wanted.end();
+      if (!ov.solutions && scene.lighting.solutions_from_sun)
+        for (int j = 0; j < 19; ++j)
+          if (std::find(wanted.begin(), wanted.end(), j) == wanted.end()) mp.savings.solutions_left_out.push_back(j);
+      for (int idx : wanted) {
         SolutionPlan s;
         s.index = idx;
         s.grid_name = base_grid_name(idx);
         s.direction = {d3q19::cx(idx), d3q19::cy(idx), d3q19::cz(idx)};
         s.boundary = base_boundary(idx);
+        // Spec sec. 4: with an empty boundary layer (margin >= 1 guarantees it) the interior of
+        // B_0 is the sum of the directional solutions, so it need not be solved.
+        s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && spec.margin >= 1;
+        mp.savings.ambient_from_sum = mp.savings.ambient_from_sum || s.derived;
         mp.solutions.push_back(s);
       }
     }

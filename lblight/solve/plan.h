@@ -29,6 +29,17 @@ struct SolutionPlan {
   std::string grid_name;           // B00..B18, or "light"
   std::array<int, 3> direction{};  // c_index (zero for ambient and static)
   std::array<double, 19> boundary{};
+  bool derived = false;            // B_0 summed from B_1..B_18 instead of solved
+};
+
+// What the plan leaves out because the scene does not need it (issue: compute nothing a scene
+// does not need); shown by validate and recorded in the manifest.
+struct PlanSavings {
+  std::vector<int> solutions_left_out;  // base solutions no allowed sun can select
+  bool ambient_from_sum = false;        // B_0 = sum of B_1..B_18 (boundary layer empty)
+  int channels_solved = 3;              // 1 when R, G and B share their materials
+  Dims full_lattice;                    // the lattice before cropping
+  bool cropped = false;
 };
 
 struct StepPolicy {
@@ -49,10 +60,12 @@ struct ModelPlan {
   std::vector<ChannelMaterials> channels;  // distinct channel materials (1 when R = G = B)
   std::array<int, 3> channel_of{};         // colour channel -> entry of `channels`
   std::vector<SolutionPlan> solutions;
+  PlanSavings savings;
   StepPolicy steps;
   GridStats stats;
   double estimated_steps = 0;              // per solution
-  std::size_t systems() const { return solutions.size() * channels.size(); }
+  std::size_t solved_solutions() const;  // not derived
+  std::size_t systems() const { return solved_solutions() * channels.size(); }
 };
 
 struct BakePlan {
@@ -64,6 +77,11 @@ struct BakePlan {
 
 // Loads every model's grid, validates it (spec sec. 6) and lays out the work.
 BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {});
+
+// The grid cut to the box of its occupied nodes (unchanged when empty or already tight). Index
+// coordinates and the transform are kept, so the interior of the smaller lattice sees exactly the
+// boundary light it saw before: outside the occupied box light only streams.
+ModelGrid crop_to_occupied(const ModelGrid& grid);
 
 // The lattice for a grid: grown by `margin` empty nodes on every side (spec sec. 4).
 LatticeGeometry build_lattice(const ModelGrid& grid, int margin);

@@ -23,6 +23,7 @@ using Clock = std::chrono::steady_clock;
 ModelPlan single(const ModelPlan& mp, const SolutionPlan& sol, int distinct_channel) {
   ModelPlan sub = mp;
   sub.solutions = {sol};
+  sub.solutions[0].derived = false;  // the report solves every solution it studies
   sub.channels = {mp.channels[static_cast<std::size_t>(distinct_channel)]};
   sub.channel_of = {0, 0, 0};
   return sub;
@@ -164,8 +165,11 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
       report.references.push_back(ref);
       for (const ReportRunSpec& run : opt.runs) {
         if (!backend.supports(run.precision)) continue;
-        ReportCurve curve{mp.spec->name, sol->grid_name, kChannelNames[colour],
-                          run.label() + " " + backend.name()};
+        ReportCurve curve;
+        curve.model = mp.spec->name;
+        curve.solution = sol->grid_name;
+        curve.channel = kChannelNames[colour];
+        curve.run = run.label() + " " + backend.name();
         log("  run: " + curve.run);
         ModelPlan r = sub;
         r.steps.mode = IterationMode::Auto;

@@ -1,0 +1,214 @@
+// Leaving out what a scene does not need (docs/accuracy.md, "What a bake leaves out"): each skip
+// is checked to give the same results for what is kept.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "lblight/backend/backend.h"
+#include "lblight/lattice/d3q19.h"
+#include "lblight/lattice/sun_coverage.h"
+#include "lblight/solve/bake.h"
+#include "lblight/solve/plan.h"
+#include "tests/test_support.h"
+
+using namespace lblight;
+using namespace lblight::test;
+
+namespace {
+
+std::vector<int> needed_list(const SunConstraints& c) {
+  const auto need = needed_base_solutions(c);
+  std::vector<int> out;
+  for (int j = 0; j < 19; ++j)
+    if (need[static_cast<std::size_t>(j)]) out.push_back(j);
+  return out;
+}
+
+// Directions that some sun in the band gets a weight from, found by brute force over suns.
+std::vector<int> brute_force_band(double e0, double e1, bool ambient) {
+  std::array<bool, 19> hit{};
+  hit[0] = ambient;
+  const int ne = e0 == e1 ? 1 : 721, na = 1440;
+  for (int a = 0; a < ne; ++a) {
+    const double el = ne == 1 ? e0 : e0 + (e1 - e0) * a / (ne - 1);
+    for (int b = 0; b < na; ++b) {
+      const Vec3d t = toward_sun_from_angles(el, 360.0 * b / na);
+      const SunWeights w = decompose_direction({-t.x, -t.y, -t.z});
+      for (int k = 0; k < 3; ++k)
+        if (w.weight[static_cast<std::size_t>(k)] > 1e-12) hit[static_cast<std::size_t>(w.direction[static_cast<std::size_t>(k)])] = true;
+    }
+  }
+  std::vector<int> out;
+  for (int j = 0; j < 19; ++j)
+    if (hit[static_cast<std::size_t>(j)]) out.push_back(j);
+  return out;
+}
+
+struct BakeResult {
+  BakePlan plan;
+  std::map<int, SolutionResult> solutions;
+};
+
+class Keep : public BakeObserver {
+ public:
+  explicit Keep(std::map<int, SolutionResult>& out) : out_(out) {}
+  void solution_done(const ModelPlan&, SolutionResult& r) override { out_[r.plan.index] = std::move(r); }
+
+ private:
+  std::map<int, SolutionResult>& out_;
+};
+
+// Scenes must outlive their plans (plans point into them).
+BakeResult bake(const Scene& scene, Precision precision = Precision::Float32) {
+  BakeResult r;
+  PlanOverrides ov;
+  ov.precision = precision;
+  r.plan = make_plan(scene, ov);
+  auto backend = cpu_backend(0);
+  Keep keep(r.solutions);
+  BakeOptions opt;
+  opt.precision = precision;
+  bake_model(r.plan.models.at(0), *backend, opt, keep);
+  return r;
+}
+
+std::string scene_text(const std::string& lighting, const std::string& solver, const std::string& model_extra = "") {
+  return R"({"version": 1, "models": [{"name": "m", "density": {"type": "procedural", "shape": "plant", "resolution": 10},
+             "material": "leaf")" +
+         model_extra + R"(}], "lighting": )" + lighting + R"(, "solver": )" + solver + "}";
+}
+
+double max_rel(const std::vector<float>& a, const std::vector<float>& b) {
+  REQUIRE(a.size() == b.size());
+  double worst = 0, peak = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) peak = std::max(peak, static_cast<double>(std::fabs(a[i])));
+  for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::fabs(static_cast<double>(a[i]) - b[i]) / peak);
+  return worst;
+}
+
+}  // namespace
+
+TEST_CASE("Sun above the horizon with yaw-only instances needs 13 directions and ambient", "[skips][sun]") {
+  SunConstraints c;
+  c.min_elevation = 0;
+  c.max_elevation = 90;
+  c.rotation = InstanceRotation::Yaw;
+  const std::vector<int> got = needed_list(c);
+  std::vector<int> expect{0};
+  for (int j = 1; j < 19; ++j)
+    if (d3q19::cz(j) <= 0) expect.push_back(j);  // light travelling down or level
+  CHECK(got == expect);
+  CHECK(got.size() == 14);
+  CHECK(got == brute_force_band(0, 90, true));
+}
+
+TEST_CASE("The needed directions match a brute-force sweep of suns", "[skips][sun]") {
+  for (auto [e0, e1] : {std::pair{10.0, 50.0}, {30.0, 30.0}, {45.0, 45.0}, {-20.0, 5.0}, {60.0, 90.0}, {0.0, 0.0}}) {
+    SunConstraints c;
+    c.min_elevation = e0;
+    c.max_elevation = e1;
+    c.rotation = InstanceRotation::Yaw;
+    INFO("elevation " << e0 << ".." << e1);
+    CHECK(needed_list(c) == brute_force_band(e0, e1, true));
+  }
+}
+
+TEST_CASE("A fixed sun needs its three face directions; free rotation needs all", "[skips][sun]") {
+  SunConstraints c;
+  c.fixed_toward_sun = toward_sun_from_angles(35, 20);
+  c.rotation = InstanceRotation::None;
+  c.ambient = false;
+  const Vec3d t = *c.fixed_toward_sun;
+  const SunWeights w = decompose_direction({-t.x, -t.y, -t.z});
+  std::vector<int> expect(w.direction.begin(), w.direction.end());
+  std::sort(expect.begin(), expect.end());
+  CHECK(needed_list(c) == expect);
+  c.ambient = true;
+  expect.insert(expect.begin(), 0);
+  CHECK(needed_list(c) == expect);
+  c.rotation = InstanceRotation::Any;
+  CHECK(needed_list(c).size() == 19);
+}
+
+TEST_CASE("Scene lighting declarations choose the solutions, and conflicts are rejected", "[skips][scene]") {
+  const Scene yaw = parse_scene(scene_text(R"({"sun_range": {"min_elevation": 0}, "instance_rotation": "yaw"})", "{}"),
+                                "s.json");
+  CHECK(yaw.lighting.solutions.size() == 14);
+  const Scene fixed = parse_scene(scene_text(R"({"sun": {"elevation": 35, "azimuth": 20}, "ambient": false})", "{}"),
+                                  "s.json");
+  CHECK(fixed.lighting.solutions.size() == 3);
+  CHECK(parse_scene(scene_text(R"({"mode": "base"})", "{}"), "s.json").lighting.solutions.size() == 19);
+  CHECK_THROWS_WITH(parse_scene(scene_text(R"({"solutions": "all", "sun_range": {"min_elevation": 0}})", "{}"), "s.json"),
+                    Catch::Contains("/lighting/solutions"));
+  CHECK_THROWS_WITH(parse_scene(scene_text(R"({"instance_rotation": "roll"})", "{}"), "s.json"),
+                    Catch::Contains("allowed: none, yaw"));
+  CHECK_THROWS_WITH(parse_scene(scene_text(R"({"sun_range": {"min_elevation": 50, "max_elevation": 10}})", "{}"), "s.json"),
+                    Catch::Contains("max_elevation"));
+}
+
+TEST_CASE("A yaw-only, sun-above-horizon bake runs 14 solutions with results identical to the full bake",
+          "[skips][bake]") {
+  const Scene full = parse_scene(scene_text(R"({"solutions": "all", "ambient_from_sum": false})", R"({"iterations": 24})"),
+                                 "s.json");
+  const Scene kept = parse_scene(
+      scene_text(R"({"sun_range": {"min_elevation": 0}, "instance_rotation": "yaw", "ambient_from_sum": false})",
+                 R"({"iterations": 24})"),
+      "s.json");
+  const BakeResult a = bake(full), b = bake(kept);
+  REQUIRE(a.solutions.size() == 19);
+  REQUIRE(b.solutions.size() == 14);
+  CHECK(b.plan.models[0].savings.solutions_left_out.size() == 5);
+  for (const auto& [idx, r] : b.solutions)
+    for (int c = 0; c < 3; ++c) {
+      INFO("B" << idx << " channel " << c);
+      CHECK(r.totals[c] == a.solutions.at(idx).totals[c]);  // bit for bit
+    }
+}
+
+TEST_CASE("B00 summed from the 18 directional solutions equals the solved B00", "[skips][bake]") {
+  const Scene solved = parse_scene(scene_text(R"({"ambient_from_sum": false})", R"({"iterations": 30})"), "s.json");
+  const Scene summed = parse_scene(scene_text(R"({"mode": "base"})", R"({"iterations": 30})"), "s.json");
+  const BakeResult a = bake(solved), b = bake(summed);
+  CHECK_FALSE(a.plan.models[0].savings.ambient_from_sum);
+  CHECK(b.plan.models[0].savings.ambient_from_sum);
+  CHECK(b.plan.models[0].solved_solutions() == 18);
+  REQUIRE(b.solutions.count(0) == 1);
+  for (int c = 0; c < 3; ++c) CHECK(max_rel(a.solutions.at(0).totals[c], b.solutions.at(0).totals[c]) < 2e-6);
+  // The derived solution's estimate bounds its parts: auto mode, tolerance 1e-3.
+  const Scene autos = parse_scene(scene_text(R"({"mode": "base"})", R"({"tolerance": 1e-3})"), "s.json");
+  const BakeResult c = bake(autos);
+  CHECK(c.solutions.at(0).error_estimate > 0);
+  CHECK(c.solutions.at(0).error_estimate < 1e-3);
+}
+
+TEST_CASE("Cropping to the occupied nodes keeps the steady state of every occupied node", "[skips][bake]") {
+  // A plant in a grid padded with empty nodes (margin 4 around the grid, crop off) against the
+  // cropped lattice; both driven to 1e-10 in float64, where transients have died out.
+  const std::string lighting = R"({"solutions": "1,5,12"})";
+  const std::string solver = R"({"tolerance": 1e-10, "precision": "float64"})";
+  const Scene wide = parse_scene(scene_text(lighting, solver, R"(, "margin": 4, "crop": false)"), "s.json");
+  const Scene tight = parse_scene(scene_text(lighting, solver, R"(, "margin": 1)"), "s.json");
+  const BakeResult a = bake(wide, Precision::Float64), b = bake(tight, Precision::Float64);
+  const ModelPlan& pa = a.plan.models[0];
+  const ModelPlan& pb = b.plan.models[0];
+  REQUIRE(pb.lattice.dims.count() < pa.lattice.dims.count());
+  const Dims& da = pa.lattice.dims;
+  const Dims& db = pb.lattice.dims;
+  int off[3];
+  for (int k = 0; k < 3; ++k) off[k] = pb.lattice_index_min[k] - pa.lattice_index_min[k];
+  for (const auto& [idx, r] : b.solutions) {
+    double worst = 0;
+    for (int z = 1; z < db.nz - 1; ++z)
+      for (int y = 1; y < db.ny - 1; ++y)
+        for (int x = 1; x < db.nx - 1; ++x)
+          for (int c = 0; c < 3; ++c) {
+            const double vb = r.totals[c][db.index(x, y, z)];
+            const double va = a.solutions.at(idx).totals[c][da.index(x + off[0], y + off[1], z + off[2])];
+            worst = std::max(worst, std::fabs(va - vb) / std::max(1e-3, std::fabs(va)));
+          }
+    INFO("B" << idx);
+    CHECK(worst < 1e-6);
+  }
+}
