@@ -60,6 +60,19 @@ TEST_CASE("The estimate never drops below the f_0 reservoir deficit or the round
   CHECK(f.error_estimate() >= 5 * 6e-8 / (1 - 0.99) * 0.99);
 }
 
+TEST_CASE("Small changes that still shrink with a settled ratio are signal, not rounding noise", "[convergence]") {
+  // A slow mode (thin cloud fringe): changes of ~1e-7 per check, below float32's noise level,
+  // contracting by 0.9976 per check. The tail (2 c r / (1 - r) ~ 1e-4) is the estimate, not the
+  // rounding floor 5 u / (1 - q) ~ 1.2e-4 (which would keep such a bake from ever stopping).
+  ConvergenceMonitor m(Precision::Float32);
+  const double r = 0.9976;
+  double c = 2e-7;
+  for (int k = 1; k <= 8; ++k, c *= r) m.record(11 * k, 11, 0, change(c));
+  const double last = c / r;
+  CHECK(m.error_estimate() == Approx(2 * last * r / (1 - r)).epsilon(0.02));
+  CHECK(m.error_estimate() < 5 * 6e-8 / (1 - std::pow(r, 1.0 / 11)));
+}
+
 TEST_CASE("BiCGStab reaches the plain iteration's fixed point", "[krylov]") {
   // densities kept away from 0: a nearly empty node that keeps f_0 relaxes at rate rho per step,
   // which neither method reaches in a test's time (test_extreme.cpp covers that case)

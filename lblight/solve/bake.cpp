@@ -66,7 +66,7 @@ class BatchRunner {
   BatchRunner(const ModelPlan& mp, LatticeSolver& solver, const BakeOptions& opt, BakeObserver& observer,
               std::vector<const SolutionPlan*> solutions, std::size_t systems)
       : mp_(mp), solver_(solver), opt_(opt), observer_(observer), solutions_(std::move(solutions)) {
-    out_.monitors.assign(systems, ConvergenceMonitor(opt.precision));
+    out_.monitors.assign(systems, ConvergenceMonitor(opt.precision, 1.0 - mp.steps.decay_hint));
     t0_ = Clock::now();
   }
 
@@ -108,7 +108,7 @@ class BatchRunner {
       out_.krylov_iterations += kr.iterations;
       out_.krylov_residual = kr.residual;
       // verification: a fresh monitor, a baseline measure, then plain checks
-      out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(opt_.precision));
+      out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(opt_.precision, 1.0 - pol.decay_hint));
       std::vector<Residual> ignore;
       solver_.measure(ignore);
       for (int c = 0; c < 6 && out_.steps < pol.max_steps; ++c)

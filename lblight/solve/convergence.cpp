@@ -48,21 +48,32 @@ double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floo
   const double now = ys.back();
   if (!std::isfinite(now)) return kUnknown;
   if (now == 0.0) return floor;
-  // At the noise floor the ratios are noise; the state is as converged as the precision allows.
-  if (now <= round_off_) return std::max(round_off_, floor);
-  if (n < 4) return kUnknown;
-  for (double y : ys)
-    if (!(y > 0.0)) return kUnknown;
-  const double r1 = ys[n - 1] / ys[n - 2], r2 = ys[n - 2] / ys[n - 3], r3 = ys[n - 3] / ys[n - 4];
-  const double r = std::max(r1, std::exp(log_slope(ys, std::min<std::size_t>(n, 6))));
-  if (r >= 1.0) return kUnknown;  // not contracting yet (light still spreading)
-  // Trust the geometric tail only once the ratio has settled: while fast modes are still dying
-  // the ratio climbs toward the slowest one and any extrapolation would be too optimistic.
-  const double gap = 1.0 - r;
-  if (std::fabs(r1 - r2) > 0.1 * gap || std::fabs(r2 - r3) > 0.2 * gap) return kUnknown;
-  if (ratio) *ratio = r;
-  // Factor 2: even a settled ratio keeps creeping up while the last fast modes fade.
-  return std::max(2.0 * now * r / gap, floor);
+  bool positive = n >= 4;
+  for (double y : ys) positive = positive && y > 0.0;
+  if (positive) {
+    const double r1 = ys[n - 1] / ys[n - 2], r2 = ys[n - 2] / ys[n - 3], r3 = ys[n - 3] / ys[n - 4];
+    const double r = std::max(r1, std::exp(log_slope(ys, std::min<std::size_t>(n, 6))));
+    // Trust the geometric tail only once the ratio has settled: while fast modes are still dying
+    // the ratio climbs toward the slowest one and any extrapolation would be too optimistic.
+    // Changes that shrink this regularly are signal, however small (a slow mode of thin
+    // fringes moves by 1e-7 per check); rounding noise does not keep a steady ratio.
+    const double gap = 1.0 - r;
+    if (r < 1.0 && std::fabs(r1 - r2) <= 0.1 * gap && std::fabs(r2 - r3) <= 0.2 * gap) {
+      if (ratio) *ratio = r;
+      // Factor 2: even a settled ratio keeps creeping up while the last fast modes fade.
+      return std::max(2.0 * now * r / gap, floor);
+    }
+  }
+  // Irregular changes at the noise level: the iteration has stalled on rounding, as converged as
+  // the precision allows; the rounding floor (record()) says how far that is from the fixed point.
+  if (now <= round_off_) return std::max({round_off_, floor, rounding_floor()});
+  return kUnknown;  // not contracting yet (light still spreading) or the ratio is still moving
+}
+
+double ConvergenceMonitor::rounding_floor() const {
+  // 5 u per step, amplified by 1 / (1 - q) of the last settled contraction (header comment).
+  const double q = settled_q_ >= 0 ? settled_q_ : q_hint_;
+  return q >= 0 ? 5.0 * unit_ / std::max(1e-12, 1.0 - q) : 0.0;
 }
 
 void ConvergenceMonitor::record(int step, int interval, double seconds, const Residual& r) {
@@ -76,11 +87,9 @@ void ConvergenceMonitor::record(int step, int interval, double seconds, const Re
   const double deficit_max = r.total_max > 0 ? r.deficit_max / r.total_max : 0.0;
   if (!r.finite) c.change_l2 = c.change_max = kUnknown;
   history_.push_back(c);
-  // The rounding floor: 5 u per step, amplified by 1 / (1 - q) (header comment).
-  const double rounding = settled_q_ >= 0 ? 5.0 * unit_ / std::max(1e-12, 1.0 - settled_q_) : 0.0;
   double ratio = -1;
-  history_.back().error_estimate = tail_estimate(&CheckPoint::change_l2, std::max(c.deficit_l2, rounding), &ratio);
-  history_.back().error_estimate_max = tail_estimate(&CheckPoint::change_max, std::max(deficit_max, rounding), nullptr);
+  history_.back().error_estimate = tail_estimate(&CheckPoint::change_l2, c.deficit_l2, &ratio);
+  history_.back().error_estimate_max = tail_estimate(&CheckPoint::change_max, deficit_max, nullptr);
   if (ratio > 0 && interval > 0) settled_q_ = std::pow(ratio, 1.0 / interval);
 }
 

@@ -88,7 +88,8 @@ double mean_cosine(double g) {
 // Rough step count for the plain iteration to reach `tol` (shown by validate; the bake itself
 // stops on the measured error): the slowest diffusion mode of the occupied box plus the
 // per-step loss of absorbing materials, on top of the crossing time.
-double estimate_steps(const ModelPlan& mp, double tol) {
+// The slowest decay rate per step of that estimate (1 - q of the plain iteration).
+double slowest_decay(const ModelPlan& mp) {
   const Dims& d = mp.lattice.dims;
   double rho_sum = 0;
   std::size_t n = 0;
@@ -97,7 +98,7 @@ double estimate_steps(const ModelPlan& mp, double tol) {
       rho_sum += r;
       ++n;
     }
-  if (n == 0) return d.longest();
+  if (n == 0) return 1.0;
   const double rho = rho_sum / static_cast<double>(n);
   double slowest = 1e300;
   for (int c = 0; c < kChannels; ++c) {
@@ -111,7 +112,11 @@ double estimate_steps(const ModelPlan& mp, double tol) {
     const double decay_absorb = mp.spec->material.absorbs ? rho * p.sigma_a : 0.0;
     slowest = std::min(slowest, decay_diffusion + decay_absorb);
   }
-  return d.longest() + std::log(1.0 / tol) / slowest;
+  return std::min(1.0, slowest);
+}
+
+double estimate_steps(const ModelPlan& mp, double tol) {
+  return mp.lattice.dims.longest() + std::log(1.0 / tol) / slowest_decay(mp);
 }
 
 bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int count) {
@@ -203,6 +208,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
     st.max_steps = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 100 * longest;
     if (st.mode == IterationMode::Paper) st.fixed_steps = 2 * longest;
     if (st.mode == IterationMode::Fixed) st.fixed_steps = ov.mode ? ov.iterations : scene.solver.iterations;
+    st.decay_hint = slowest_decay(mp);
     mp.estimated_steps = st.mode == IterationMode::Auto
                              ? std::clamp(estimate_steps(mp, st.tolerance), static_cast<double>(st.min_steps),
                                           static_cast<double>(st.max_steps))

@@ -50,6 +50,8 @@ struct StepPolicy {
   int max_steps = 0;        // Auto: give up (not converged) after this many
   int check_interval = 16;  // steps between convergence measurements
   double tolerance = 1e-4;
+  double decay_hint = 0;    // rough slowest decay per step (diffusion + absorption), for the
+                            // rounding floor before the iteration shows its own (convergence.h)
 };
 
 struct ModelPlan {
