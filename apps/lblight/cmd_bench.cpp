@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <cmath>
 #include <iostream>
 #include <sstream>
 
@@ -60,6 +61,31 @@ LatticeGeometry bench_lattice(const std::string& shape, int size) {
   return lat;
 }
 
+ChannelMaterials bench_materials() {
+  ChannelMaterials ch;
+  ch.omega[0] = build_omega({0.008, 0.792, 0.9});
+  ch.omega[1] = build_omega({0.008, 0.792, -1.0});
+  return ch;
+}
+
+// Totals of one system (sun along lattice direction 1) after `steps` steps.
+std::vector<float> bench_totals(const Backend& backend, const LatticeGeometry& lat, Precision precision, int steps) {
+  SolverOptions so;
+  so.precision = precision;
+  so.max_systems = 1;
+  auto solver = backend.create(lat, {bench_materials()}, so);
+  SystemSpec sys;
+  const auto b = base_boundary(1);
+  for (int i = 0; i < 19; ++i) sys.boundary[i] = b[i];
+  solver->reset({sys});
+  solver->step(steps);
+  std::vector<Residual> r;
+  solver->measure(r);
+  std::vector<float> t(lat.dims.count());
+  solver->read_totals(0, t.data());
+  return t;
+}
+
 int run_bench(const BenchArgs& a) {
   auto backend = make_backend({a.backend, a.threads, a.device});
   const std::size_t probe = a.bandwidth_mib > 0 ? static_cast<std::size_t>(a.bandwidth_mib * 1024 * 1024)
@@ -83,9 +109,7 @@ int run_bench(const BenchArgs& a) {
     }
     for (int size : a.sizes) {
       LatticeGeometry lat = bench_lattice(a.shape, size);
-      ChannelMaterials ch;
-      ch.omega[0] = build_omega({0.008, 0.792, 0.9});
-      ch.omega[1] = build_omega({0.008, 0.792, -1.0});
+      const ChannelMaterials ch = bench_materials();
       SolverOptions so;
       so.precision = precision;
       so.max_systems = a.systems;
@@ -153,6 +177,37 @@ int run_bench(const BenchArgs& a) {
                  format_seconds(run["seconds"].get<double>()), mlups, gbs, frac});
     }
   }
+  // Storage error: each other precision against float32 after the same 2N steps from the same
+  // start (arithmetic is float32 or better everywhere; only what is stored differs).
+  Table errors({"lattice", "precision", "steps", "rel. L2 vs float32", "rel. max vs float32"});
+  bool any_error = false;
+  if (backend->supports(Precision::Float32))
+    for (int size : a.sizes) {
+      std::vector<float> ref;
+      for (const std::string& pname : a.precisions) {
+        const Precision precision = parse_precision(pname);
+        if (precision == Precision::Float32 || !backend->supports(precision)) continue;
+        const int steps = 2 * size;
+        if (ref.empty()) ref = bench_totals(*backend, bench_lattice(a.shape, size), Precision::Float32, steps);
+        const std::vector<float> got = bench_totals(*backend, bench_lattice(a.shape, size), precision, steps);
+        double e2 = 0, t2 = 0, emax = 0, tmax = 0;
+        for (std::size_t i = 0; i < ref.size(); ++i) {
+          const double d = static_cast<double>(got[i]) - ref[i];
+          e2 += d * d;
+          t2 += static_cast<double>(ref[i]) * ref[i];
+          emax = std::max(emax, std::fabs(d));
+          tmax = std::max(tmax, static_cast<double>(std::fabs(ref[i])));
+        }
+        const double l2 = t2 > 0 ? std::sqrt(e2 / t2) : 0.0, mx = tmax > 0 ? emax / tmax : 0.0;
+        char el2[32], emx[32];
+        std::snprintf(el2, sizeof el2, "%.2e", l2);
+        std::snprintf(emx, sizeof emx, "%.2e", mx);
+        errors.add({std::to_string(size) + "^3", pname, std::to_string(steps), el2, emx});
+        out["storage_error"].push_back({{"size", size}, {"precision", pname}, {"steps", steps},
+                                        {"relative_l2_vs_float32", l2}, {"relative_max_vs_float32", mx}});
+        any_error = true;
+      }
+    }
   if (a.json) {
     std::cout << out.dump(2) << "\n";
   } else {
@@ -163,6 +218,7 @@ int run_bench(const BenchArgs& a) {
     std::cout << table.str();
     std::cout << "one lattice update moves " << bytes_per_update(Precision::Float32)
               << " bytes in float32 (19 values in, 19 out, density and material)\n";
+    if (any_error) std::cout << "storage error after the same steps from the same start:\n" << errors.str();
   }
   return 0;
 }
