@@ -212,3 +212,26 @@ TEST_CASE("Cropping to the occupied nodes keeps the steady state of every occupi
     CHECK(worst < 1e-6);
   }
 }
+
+TEST_CASE("Channels with equal materials are solved once and equal a separate solve", "[skips][bake]") {
+  const auto cloud = [](const std::string& sigma_s) {
+    return R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural", "shape": "cloud", "resolution": 12},
+               "material": {"sigma_a": 0.008, "sigma_s": )" +
+           sigma_s + R"(, "g": 0.9}}], "lighting": {"solutions": "1,6"}, "solver": {"iterations": 30}})";
+  };
+  const Scene grey = parse_scene(cloud("0.792"), "s.json");
+  const Scene blue = parse_scene(cloud("[0.792, 0.792, 0.6]"), "s.json");
+  const BakeResult a = bake(grey), b = bake(blue);
+  CHECK(a.plan.models[0].channels.size() == 1);
+  CHECK(a.plan.models[0].savings.channels_solved == 1);
+  CHECK(b.plan.models[0].channels.size() == 2);
+  for (int idx : {1, 6}) {
+    const auto& ta = a.solutions.at(idx).totals;
+    const auto& tb = b.solutions.at(idx).totals;
+    CHECK(ta[0] == ta[1]);
+    CHECK(ta[0] == ta[2]);
+    CHECK(ta[0] == tb[0]);  // red solved with green in one system equals red solved for all three
+    CHECK(tb[0] == tb[1]);
+    CHECK(tb[2] != tb[0]);
+  }
+}
