@@ -156,14 +156,23 @@ TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics
     CHECK(s.info(slot).name == r.plan.grid_name);
     CHECK(s.info(slot).direction[0] == r.plan.direction[0]);
     CHECK(s.info(slot).threshold_mode == 1);
+    // The manifest's sizes and errors (issue 4): bytes and ratio against float RGB, RMS and max
+    // error over all lattice nodes and channels, encode time.
+    CHECK(c["compressed_bytes"] == 12 * (c["blocks"].get<std::uint64_t>() + c["coefficients"].get<std::uint64_t>()));
+    CHECK(c["compressed_bytes"] == s.info(slot).stream_bytes());
+    CHECK(c["encode_seconds"].get<double>() >= 0.0);
     const std::vector<float> dec = s.decode_all(static_cast<std::size_t>(slot));
-    double worst = 0, mx = 0;
+    double worst = 0, mx = 0, sum_sq = 0;
     for (std::size_t i = 0; i < mp.lattice.dims.count(); ++i)
       for (int ch = 0; ch < 3; ++ch) {
-        worst = std::max(worst, std::fabs(static_cast<double>(dec[3 * i + ch]) - r.totals[ch][i]));
+        const double e = static_cast<double>(dec[3 * i + ch]) - r.totals[ch][i];
+        worst = std::max(worst, std::fabs(e));
+        sum_sq += e * e;
         mx = std::max(mx, std::fabs(static_cast<double>(r.totals[ch][i])));
       }
     CHECK(worst == Approx(c["max_abs_error"].get<double>()).margin(1e-6));
+    const double rms = std::sqrt(sum_sq / (3.0 * static_cast<double>(mp.lattice.dims.count())));
+    CHECK(rms == Approx(c["rms_error"].get<double>()).epsilon(1e-4).margin(1e-7));
     CHECK(worst <= c["error_bound"].get<double>() + 1e-6 * mx);
     CHECK(c["threshold"].get<double>() == Approx(0.01 * mx).epsilon(1e-6));
   }
