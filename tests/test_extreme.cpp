@@ -173,7 +173,7 @@ TEST_CASE("rho*sigma_t = 1.999: finite, float32 within 1e-5 of the reference (no
 // (measured -0.88 within 400 steps); converged (10^4 steps) g = 0.9 scattering is positive, the
 // absorbing leaf converges to totals below -0.3 x the largest (measured -0.36 to -0.88), float32
 // within 1e-5 (normwise) of float64 there.
-TEST_CASE("rho*sigma_t = 1.999: transients >= -1 x max; converged: scattering > 0, absorbing leaf < 0 (the scheme)",
+TEST_CASE("rho*sigma_t = 1.999: transients >= -1 x max, converged: scattering > 0, absorbing leaf < 0 (the scheme)",
           "[extreme][stiff]") {
   const LatticeGeometry g = random_lattice({10, 10, 10}, 1.0f, 0.2, 8, 0.9f);
   const auto backend = one_thread();
@@ -254,7 +254,7 @@ TEST_CASE("No sec. 6 warning (1 + rho Omega_mm >= 0): totals >= -1e-6 max at eve
 // of 1 + rho Omega above 1. Expect: what it rejects blows up (> 1e6 within 200 steps on a uniform
 // lattice) and what it accepts stays bounded (< 100 with boundary values summing to 19); the CLI
 // check is in the sec. 6 test case below.
-TEST_CASE("Backscattering: spectral radius > 1 diverges and is rejected; radius 1 stays bounded",
+TEST_CASE("Backscattering: spectral radius > 1 diverges and is rejected, radius 1 stays bounded",
           "[extreme][stiff][validate]") {
   const LatticeGeometry g = uniform_lattice({12, 12, 12}, 1.0f);
   const auto backend = one_thread();
