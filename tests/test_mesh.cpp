@@ -478,7 +478,7 @@ TEST_CASE("Voxeliser: non-manifold and open meshes are fine, fill of an open mes
   for (float d : r.grid.density) CHECK((d >= 0.0f && d <= 1.0f));
 }
 
-TEST_CASE("Voxeliser: same result on any thread count; padding keeps the transform", "[mesh]") {
+TEST_CASE("Voxeliser: same result on any thread count, padding keeps the transform", "[mesh]") {
   TempDir tmp;
   const TriangleMesh m = read_mesh(fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj");
   const Classification c = classify_parts(m, {}, {});

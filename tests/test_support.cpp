@@ -62,6 +62,53 @@ std::vector<double> ReferenceLattice::totals() const {
   return t;
 }
 
+StepBalance step_balance(const LatticeGeometry& g, const std::vector<OmegaMatrix>& omega,
+                         const std::vector<bool>& absorbs, const std::vector<double>& f) {
+  const Dims& d = g.dims;
+  const std::size_t count = d.count();
+  auto interior = [&](int x, int y, int z) {
+    return x > 0 && y > 0 && z > 0 && x < d.nx - 1 && y < d.ny - 1 && z < d.nz - 1;
+  };
+  StepBalance b;
+  for (int z = 0; z < d.nz; ++z)
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x) {
+        const std::size_t p = d.index(x, y, z);
+        const bool inside = interior(x, y, z);
+        const int mat = g.material[p];
+        double ft[kQ];
+        for (int m = 0; m < kQ; ++m) ft[m] = f[m * count + p];
+        if (inside) {
+          for (int m = 0; m < kQ; ++m) b.stored += ft[m];
+        }
+        if (absorbs[static_cast<std::size_t>(mat)]) {
+          if (inside) b.absorbed += ft[0];
+          ft[0] = 0.0;
+        }
+        const OmegaMatrix& om = omega[static_cast<std::size_t>(mat)];
+        for (int m = 0; m < kQ; ++m) {
+          const int qx = x + d3q19::cx(m), qy = y + d3q19::cy(m), qz = z + d3q19::cz(m);
+          const bool on_lattice = qx >= 0 && qy >= 0 && qz >= 0 && qx < d.nx && qy < d.ny && qz < d.nz;
+          if (!on_lattice || inside == interior(qx, qy, qz)) continue;  // neither inflow nor outflow
+          double s = 0;
+          for (int k = 0; k < kQ; ++k) s += om[m * kQ + k] * ft[k];
+          const double post = ft[m] + g.density[p] * s;
+          (inside ? b.outflow : b.inflow) += post;
+        }
+      }
+  return b;
+}
+
+double interior_sum(const Dims& d, const std::vector<double>& f) {
+  const std::size_t count = d.count();
+  double s = 0;
+  for (int z = 1; z < d.nz - 1; ++z)
+    for (int y = 1; y < d.ny - 1; ++y)
+      for (int x = 1; x < d.nx - 1; ++x)
+        for (int m = 0; m < kQ; ++m) s += f[m * count + d.index(x, y, z)];
+  return s;
+}
+
 LatticeGeometry uniform_lattice(Dims d, float rho) {
   LatticeGeometry g;
   g.dims = d;

@@ -75,4 +75,31 @@ double min_diagonal_gain(const OmegaMatrix& omega, double rho) {
   return lo;
 }
 
+double collision_spectral_radius(const OmegaMatrix& omega, double rho, bool absorbs) {
+  // A = (I + rho Omega) K, K = diag(keep, 1, ..., 1): the update of spec sec. 3 as a matrix.
+  std::array<double, kQ * kQ> a{}, b{};
+  for (int m = 0; m < kQ; ++m)
+    for (int n = 0; n < kQ; ++n)
+      a[m * kQ + n] = (n == 0 && absorbs) ? 0.0 : (m == n ? 1.0 : 0.0) + rho * omega[m * kQ + n];
+  // Gelfand: rho(A) = lim ||A^n||^(1/n). Square 40 times, rescaling each time and keeping the
+  // logarithm of the scale: log ||A^(2^k)|| ~ log_scale.
+  constexpr int kSquarings = 40;
+  double log_scale = 0.0;
+  for (int k = 0; k < kSquarings; ++k) {
+    double peak = 0.0;
+    for (int m = 0; m < kQ; ++m)
+      for (int n = 0; n < kQ; ++n) {
+        double s = 0.0;
+        for (int l = 0; l < kQ; ++l) s += a[m * kQ + l] * a[l * kQ + n];
+        b[m * kQ + n] = s;
+        peak = std::max(peak, std::fabs(s));
+      }
+    if (peak == 0.0) return 0.0;  // nilpotent
+    for (double& v : b) v /= peak;
+    log_scale = 2.0 * log_scale + std::log(peak);
+    a = b;
+  }
+  return std::exp(std::ldexp(log_scale, -kSquarings));
+}
+
 }  // namespace lblight

@@ -37,4 +37,13 @@ double diffusion_coefficient(const OpticalParams& params, double rho = 1.0);
 // negative (spec sec. 6 asks for a warning, not a rejection).
 double min_diagonal_gain(const OmegaMatrix& omega, double rho);
 
+// Spectral radius of one node's update f -> f~ + rho Omega f~ (f~_0 = 0 when the material
+// absorbs): the factor by which a uniform region of density rho amplifies its worst pattern of
+// directions per step. Above 1 the scheme diverges there. rho sigma_t < 2 (spec sec. 6) keeps it
+// at 1 for g >= 0, but with backscattering the odd patterns (f_m = -f_opp(m)) are multiplied by
+// 1 - rho (sigma_t - sigma_s lambda), lambda down to -1 at g = -1: e.g. sigma_a 0.2,
+// sigma_s 1.7, g = -1 at rho 1 gives -2.6 although rho sigma_t = 1.9. Computed in double as
+// lim ||A^n||^(1/n) with n = 2^40 (repeated squaring), accurate to about 1e-12.
+double collision_spectral_radius(const OmegaMatrix& omega, double rho, bool absorbs);
+
 }  // namespace lblight

@@ -80,11 +80,25 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
                           "((2 / sigma_t) - 1) / (4 (1 + sigma_a)) of 000 eq. (4) stays positive",
                       where);
       }
+      // rho * sigma_t < 2 is not enough with backscattering (g < 0): a uniform region of this
+      // density must not amplify any pattern of directions, or the scheme diverges there.
+      const double radius = collision_spectral_radius(build_omega(p), rho, mat.absorbs);
+      if (radius > 1.0 + 1e-9) {
+        Location where{scene.file.string(), m.json_path + field, voxel_string(g, st.max_index[k])};
+        throw_invalid("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
+                          ": with g = " + fmt(p.g) + " one collision at rho " + fmt(rho) + " amplifies a pattern of " +
+                          "directions by " + fmt(radius) + " per step (spectral radius of 1 + rho * Omega; sigma_a " +
+                          fmt(p.sigma_a) + ", sigma_s " + fmt(p.sigma_s) + ", rho * sigma_t = " + fmt(rst) +
+                          "); allowed: at most 1, else the scheme diverges (lower sigma_s or the density, or raise " +
+                          "g; at g = -1 this needs rho * (sigma_a + 2 sigma_s) < 2)",
+                      where);
+      }
       const double gain = min_diagonal_gain(build_omega(p), rho);
       if (gain < 0.0)
         warnings.push_back("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
                            ": 1 + rho * Omega_mm = " + fmt(gain) +
-                           " < 0, so values can go negative in transients (spec sec. 6)");
+                           " < 0, so values can go negative (spec sec. 6), in transients and, with absorption, " +
+                           "in the converged result (docs/stability.md)");
     }
   }
   return st;
