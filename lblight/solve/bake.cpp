@@ -56,6 +56,11 @@ struct BatchOutcome {
   int steps = 0;
   bool converged = false;
   std::vector<ConvergenceMonitor> monitors;
+  // Per system, once its estimate has been below the tolerance (after min_steps): the smallest
+  // estimate since (inf before). Further steps only bring the state closer to the fixed point, so
+  // that estimate stays a bound while the rest of the batch goes on; without the latch, estimates
+  // near the noise level of several systems would all have to dip below the tolerance at once.
+  std::vector<double> latched, latched_max;
   std::vector<CheckPoint> worst_history;  // the worst system at every check
   int krylov_iterations = 0;
   double krylov_residual = 0;
@@ -67,6 +72,7 @@ class BatchRunner {
               std::vector<const SolutionPlan*> solutions, std::size_t systems)
       : mp_(mp), solver_(solver), opt_(opt), observer_(observer), solutions_(std::move(solutions)) {
     out_.monitors.assign(systems, ConvergenceMonitor(opt.precision, 1.0 - mp.steps.decay_hint));
+    reset_latches();
     t0_ = Clock::now();
   }
 
@@ -109,6 +115,7 @@ class BatchRunner {
       out_.krylov_residual = kr.residual;
       // verification: a fresh monitor, a baseline measure, then plain checks
       out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(opt_.precision, 1.0 - pol.decay_hint));
+      reset_latches();
       std::vector<Residual> ignore;
       solver_.measure(ignore);
       for (int c = 0; c < 6 && out_.steps < pol.max_steps; ++c)
@@ -124,13 +131,19 @@ class BatchRunner {
   double seconds() const { return seconds_since(t0_); }
 
  private:
-  // Runs `chunk` steps and a measure; true when every system's estimate is below tolerance.
+  void reset_latches() {
+    out_.latched.assign(out_.monitors.size(), ConvergenceMonitor::kUnknown);
+    out_.latched_max.assign(out_.monitors.size(), ConvergenceMonitor::kUnknown);
+  }
+
+  // Runs `chunk` steps and a measure; true when every system's estimate has been below tolerance.
   bool check(int chunk, int planned) {
     solver_.step(chunk);
     out_.steps += chunk;
     solver_.measure(residuals_);
     const double secs = seconds_since(t0_);
     double worst = 0, worst_max = 0;
+    bool all_latched = true;
     CheckPoint worst_point;
     for (std::size_t s = 0; s < out_.monitors.size(); ++s) {
       out_.monitors[s].record(out_.steps, chunk, secs, residuals_[s]);
@@ -141,15 +154,21 @@ class BatchRunner {
                         "; this should have been rejected by validation, please report it");
       const CheckPoint& cp = out_.monitors[s].history().back();
       if (s == 0 || cp.error_estimate > worst_point.error_estimate || std::isnan(cp.error_estimate)) worst_point = cp;
-      worst = std::max(worst, out_.monitors[s].error_estimate());
-      worst_max = std::max(worst_max, out_.monitors[s].error_estimate_max());
+      const double e = out_.monitors[s].error_estimate(), em = out_.monitors[s].error_estimate_max();
+      if (out_.steps >= mp_.steps.min_steps && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
+        out_.latched[s] = std::min(out_.latched[s], e);
+        out_.latched_max[s] = std::min(out_.latched_max[s], em);
+      }
+      all_latched = all_latched && out_.latched[s] < mp_.steps.tolerance;
+      worst = std::max(worst, std::min(e, out_.latched[s]));
+      worst_max = std::max(worst_max, std::min(em, out_.latched_max[s]));
     }
     out_.worst_history.push_back(worst_point);
     const BakeProgress ev{&mp_, solutions_, out_.steps, planned, worst, secs, worst_max};
     observer_.progress(ev);
     observer_.inspect(ev, solver_, true);
     if (opt_.cancel && opt_.cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
-    return worst < mp_.steps.tolerance;
+    return all_latched;
   }
 
   const ModelPlan& mp_;
@@ -301,10 +320,11 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       p.krylov_iterations = std::max(p.krylov_iterations, outcome.krylov_iterations);
       p.krylov_residual = std::max(p.krylov_residual, outcome.krylov_residual);
       p.seconds += batch_seconds / static_cast<double>(batch.size());
-      const double estimate = outcome.monitors[s].error_estimate();
+      const double estimate = std::min(outcome.monitors[s].error_estimate(), outcome.latched[s]);
       if (p.history.empty() || estimate >= p.error_estimate) p.history = outcome.worst_history;
       p.error_estimate = std::max(p.error_estimate, estimate);
-      p.error_estimate_max = std::max(p.error_estimate_max, outcome.monitors[s].error_estimate_max());
+      p.error_estimate_max =
+          std::max(p.error_estimate_max, std::min(outcome.monitors[s].error_estimate_max(), outcome.latched_max[s]));
       p.converged = p.converged && outcome.converged;
       if (p.channels_done < static_cast<int>(mp.channels.size())) continue;
       SolutionResult r;
