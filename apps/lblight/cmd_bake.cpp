@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 #include <memory>
@@ -56,18 +57,36 @@ class ProgressLog final : public BakeObserver {
     if (auto_mode && !r.converged)
       spdlog::warn("{} {}: stopped at max_iterations {} with est. error {} above tolerance {}", mp.spec->name,
                    r.plan.grid_name, r.iterations, format_error(r.error_estimate), mp.steps.tolerance);
-    rows_.push_back({mp.spec->name, r.plan.grid_name, format_direction(r.plan.direction), std::to_string(r.iterations),
-                     format_seconds(r.seconds), format_error(r.error_estimate)});
+    // Summary rows in model and index order (a B00 summed from the others arrives last).
+    if (models_.empty() || models_.back() != &mp) models_.push_back(&mp);
+    rows_.push_back({models_.size(), r.plan.index,
+                     {mp.spec->name, r.plan.grid_name, format_direction(r.plan.direction),
+                      r.plan.derived ? "sum" : std::to_string(r.iterations), format_seconds(r.seconds),
+                      format_error(r.error_estimate)}});
     out_.add(mp, r);
   }
 
-  const std::vector<std::vector<std::string>>& rows() const { return rows_; }
+  std::vector<std::vector<std::string>> rows() const {
+    auto sorted = rows_;
+    std::stable_sort(sorted.begin(), sorted.end(), [](const Row& a, const Row& b) {
+      return a.model != b.model ? a.model < b.model : a.index < b.index;
+    });
+    std::vector<std::vector<std::string>> out;
+    for (const Row& r : sorted) out.push_back(r.cells);
+    return out;
+  }
 
  private:
   BakeOutput& out_;
   std::size_t total_, done_ = 0;
   std::chrono::steady_clock::time_point last_beat_;
-  std::vector<std::vector<std::string>> rows_;
+  struct Row {
+    std::size_t model;
+    int index;
+    std::vector<std::string> cells;
+  };
+  std::vector<const ModelPlan*> models_;
+  std::vector<Row> rows_;
 };
 
 int run_bake(const BakeArgs& args, const GlobalOptions& global) {
