@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <type_traits>
@@ -192,7 +193,20 @@ class DeviceBuffer {
   void allocate(std::size_t count) {
     release();
     if (count == 0) return;
-    GPU_CHECK(gpuMalloc(reinterpret_cast<void**>(&ptr_), count * sizeof(T)));
+    const gpuError_t err = gpuMalloc(reinterpret_cast<void**>(&ptr_), count * sizeof(T));
+    if (err != gpuSuccess) ptr_ = nullptr;  // the destructor must not free what was never allocated
+    if (err == gpuErrorMemoryAllocation) {
+      (void)gpuGetLastError();  // not sticky: clear it, or the next launch check reports it
+      std::size_t free_bytes = 0, total = 0;
+      (void)gpuMemGetInfo(&free_bytes, &total);
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "GPU out of memory: allocating %.3f GiB failed with %.3f GiB free",
+                    static_cast<double>(count * sizeof(T)) / (1024.0 * 1024.0 * 1024.0),
+                    static_cast<double>(free_bytes) / (1024.0 * 1024.0 * 1024.0));
+      throw Error(ErrorCategory::Unavailable,
+                  std::string(buf) + "; lower the resolution or the systems per batch, or use a GPU with more memory");
+    }
+    check(err, "gpuMalloc", __FILE__, __LINE__);
     count_ = count;
   }
   void release() {
