@@ -223,6 +223,23 @@ class DeviceBuffer {
   std::size_t count_ = 0;
 };
 
+// "" when this build has code the current device (`device`) can run, else why not: the binary
+// holds sm_80/sm_90 machine code and compute_90 PTX, so older GPUs (sm_75, ...) have nothing
+// to run, and every launch there would fail with "no kernel image".
+std::string kernel_image_problem(int device) {
+  gpuFuncAttributes attr{};
+  const gpuError_t err = gpuFuncGetAttributes(&attr, reinterpret_cast<const void*>(&finish_dot_kernel));
+  if (err == gpuSuccess) return "";
+  (void)gpuGetLastError();
+  gpuDeviceProp props{};
+  std::string name = "GPU " + std::to_string(device);
+  if (gpuGetDeviceProperties(&props, device) == gpuSuccess)
+    name += " (" + std::string(props.name) + ", compute capability " + std::to_string(props.major) + "." +
+            std::to_string(props.minor) + ")";
+  (void)gpuGetLastError();
+  return name + " cannot run the GPU code of this build (sm_80, sm_90, compute_90 PTX): " + gpuGetErrorString(err);
+}
+
 const void* g_bound_tables_owner = nullptr;  // the solver whose tables are in constant memory
 
 dim3 interior_grid(const Dims& d, int block) {
@@ -494,12 +511,18 @@ class CudaBackend final : public Backend {
  public:
   explicit CudaBackend(int device) : device_(device) {
     int count = 0;
-    GPU_CHECK(gpuGetDeviceCount(&count));
+    const gpuError_t err = gpuGetDeviceCount(&count);
+    if (err != gpuSuccess) {
+      (void)gpuGetLastError();
+      throw Error(ErrorCategory::Unavailable, std::string("no usable GPU: ") + gpuGetErrorString(err));
+    }
     if (device < 0 || device >= count)
       throw Error(ErrorCategory::Unavailable,
                   "GPU " + std::to_string(device) + " does not exist (" + std::to_string(count) + " present)");
     GPU_CHECK(gpuSetDevice(device));
     GPU_CHECK(gpuGetDeviceProperties(&props_, device));
+    const std::string no_code = kernel_image_problem(device);
+    if (!no_code.empty()) throw Error(ErrorCategory::Unavailable, no_code);
   }
   std::string name() const override { return "cuda"; }
   std::string description() const override {
@@ -573,9 +596,17 @@ class CudaBackend final : public Backend {
 std::string cuda_unavailable_reason() {
   int count = 0;
   const gpuError_t err = gpuGetDeviceCount(&count);
-  if (err != gpuSuccess) return std::string("no usable GPU: ") + gpuGetErrorString(err);
+  if (err != gpuSuccess) {
+    (void)gpuGetLastError();
+    return std::string("no usable GPU: ") + gpuGetErrorString(err);
+  }
   if (count == 0) return "no GPU found";
-  return "";
+  int device = 0;
+  if (gpuGetDevice(&device) != gpuSuccess) {
+    (void)gpuGetLastError();
+    device = 0;
+  }
+  return gpu::kernel_image_problem(device);
 }
 
 std::unique_ptr<Backend> make_cuda_backend(int device) { return std::make_unique<gpu::CudaBackend>(device); }
