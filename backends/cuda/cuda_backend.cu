@@ -362,8 +362,15 @@ class Solver final : public LatticeSolver {
   void write_state(int system, const std::vector<double>& f) override {
     if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
-    for (int m = 0; m < 19; ++m)
-      for (std::size_t i = 0; i < count_; ++i) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
+    // Interior nodes only. Boundary nodes' slots are never read by a step, but a Krylov solve
+    // copies the state into its vectors, and the slots no step writes must stay 0 there (else
+    // y = A x keeps y's old values in them and A is no longer linear).
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x) {
+          const std::size_t i = d_.index(x, y, z);
+          for (int m = 0; m < 19; ++m) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
+        }
     GPU_CHECK(gpuMemcpy(level_ptr(system, level_), raw.data(), raw.size() * sizeof(T), gpuMemcpyHostToDevice));
     bind();
     inflow(level_ptr(0, 0), false);
