@@ -316,6 +316,8 @@ class Solver final : public LatticeSolver {
   }
 
   void measure(std::vector<Residual>& out) override {
+    out.clear();
+    if (batch_.empty()) return;  // a grid of 0 blocks is a launch error
     bind();
     const BatchArgs<T> a = args();
     measure_kernel<T><<<static_cast<unsigned>(reduce_blocks_), kReduceBlock>>>(a, partial_.get());
@@ -340,11 +342,13 @@ class Solver final : public LatticeSolver {
   }
 
   void read_totals(int system, float* out) const override {
+    check_system(system);
     GPU_CHECK(gpuMemcpy(out, totals_.get() + static_cast<std::size_t>(system) * count_, count_ * sizeof(float),
                         gpuMemcpyDeviceToHost));
   }
 
   void read_state(int system, std::vector<double>& f) const override {
+    check_system(system);
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
     GPU_CHECK(gpuMemcpy(raw.data(), level_ptr(system, level_), raw.size() * sizeof(T), gpuMemcpyDeviceToHost));
     const SystemSpec& spec = batch_.at(static_cast<std::size_t>(system));
@@ -360,6 +364,7 @@ class Solver final : public LatticeSolver {
   }
 
   void write_state(int system, const std::vector<double>& f) override {
+    check_system(system);
     if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
     // Interior nodes only. Boundary nodes' slots are never read by a step, but a Krylov solve
@@ -472,6 +477,12 @@ class Solver final : public LatticeSolver {
     if (systems >= 0) a.systems = systems;
     inflow_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(a, level, zero);
     GPU_CHECK(gpuGetLastError());
+  }
+
+  // A system of the current batch: anything else would address device memory past the state.
+  void check_system(int system) const {
+    if (system < 0 || system >= static_cast<int>(batch_.size()))
+      throw std::out_of_range("cuda backend: system " + std::to_string(system) + " is not in the batch");
   }
 
   T* vec(int v) const { return vectors_.at(static_cast<std::size_t>(v))->get(); }
