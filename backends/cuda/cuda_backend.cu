@@ -574,7 +574,13 @@ class CudaBackend final : public Backend {
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {
     GPU_CHECK(gpuSetDevice(device_));
-    const int capacity = std::clamp(options.max_systems > 0 ? options.max_systems : 1, 1, kMaxBatch);
+    // Asking for more than one launch holds is an error here, not a silent clamp: callers that
+    // fill batches of max_systems (bench --systems) would otherwise fail in reset() with a
+    // logic_error about the solver's capacity.
+    if (options.max_systems > kMaxBatch)
+      throw Error(ErrorCategory::InvalidInput, "the cuda backend runs at most " + std::to_string(kMaxBatch) +
+                                                   " systems per batch, not " + std::to_string(options.max_systems));
+    const int capacity = options.max_systems > 0 ? options.max_systems : 1;
     switch (options.precision) {
       case Precision::Float32: return std::make_unique<Solver<float>>(g, channels, capacity);
       case Precision::Float16: return std::make_unique<Solver<gpu_half>>(g, channels, capacity);
