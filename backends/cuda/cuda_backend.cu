@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <type_traits>
@@ -192,7 +193,20 @@ class DeviceBuffer {
   void allocate(std::size_t count) {
     release();
     if (count == 0) return;
-    GPU_CHECK(gpuMalloc(reinterpret_cast<void**>(&ptr_), count * sizeof(T)));
+    const gpuError_t err = gpuMalloc(reinterpret_cast<void**>(&ptr_), count * sizeof(T));
+    if (err != gpuSuccess) ptr_ = nullptr;  // the destructor must not free what was never allocated
+    if (err == gpuErrorMemoryAllocation) {
+      (void)gpuGetLastError();  // not sticky: clear it, or the next launch check reports it
+      std::size_t free_bytes = 0, total = 0;
+      (void)gpuMemGetInfo(&free_bytes, &total);
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "GPU out of memory: allocating %.3f GiB failed with %.3f GiB free",
+                    static_cast<double>(count * sizeof(T)) / (1024.0 * 1024.0 * 1024.0),
+                    static_cast<double>(free_bytes) / (1024.0 * 1024.0 * 1024.0));
+      throw Error(ErrorCategory::Unavailable,
+                  std::string(buf) + "; lower the resolution or the systems per batch, or use a GPU with more memory");
+    }
+    check(err, "gpuMalloc", __FILE__, __LINE__);
     count_ = count;
   }
   void release() {
@@ -208,6 +222,23 @@ class DeviceBuffer {
   T* ptr_ = nullptr;
   std::size_t count_ = 0;
 };
+
+// "" when this build has code the current device (`device`) can run, else why not: the binary
+// holds sm_80/sm_90 machine code and compute_90 PTX, so older GPUs (sm_75, ...) have nothing
+// to run, and every launch there would fail with "no kernel image".
+std::string kernel_image_problem(int device) {
+  gpuFuncAttributes attr{};
+  const gpuError_t err = gpuFuncGetAttributes(&attr, reinterpret_cast<const void*>(&finish_dot_kernel));
+  if (err == gpuSuccess) return "";
+  (void)gpuGetLastError();
+  gpuDeviceProp props{};
+  std::string name = "GPU " + std::to_string(device);
+  if (gpuGetDeviceProperties(&props, device) == gpuSuccess)
+    name += " (" + std::string(props.name) + ", compute capability " + std::to_string(props.major) + "." +
+            std::to_string(props.minor) + ")";
+  (void)gpuGetLastError();
+  return name + " cannot run the GPU code of this build (sm_80, sm_90, compute_90 PTX): " + gpuGetErrorString(err);
+}
 
 const void* g_bound_tables_owner = nullptr;  // the solver whose tables are in constant memory
 
@@ -285,6 +316,8 @@ class Solver final : public LatticeSolver {
   }
 
   void measure(std::vector<Residual>& out) override {
+    out.clear();
+    if (batch_.empty()) return;  // a grid of 0 blocks is a launch error
     bind();
     const BatchArgs<T> a = args();
     measure_kernel<T><<<static_cast<unsigned>(reduce_blocks_), kReduceBlock>>>(a, partial_.get());
@@ -309,11 +342,13 @@ class Solver final : public LatticeSolver {
   }
 
   void read_totals(int system, float* out) const override {
+    check_system(system);
     GPU_CHECK(gpuMemcpy(out, totals_.get() + static_cast<std::size_t>(system) * count_, count_ * sizeof(float),
                         gpuMemcpyDeviceToHost));
   }
 
   void read_state(int system, std::vector<double>& f) const override {
+    check_system(system);
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
     GPU_CHECK(gpuMemcpy(raw.data(), level_ptr(system, level_), raw.size() * sizeof(T), gpuMemcpyDeviceToHost));
     const SystemSpec& spec = batch_.at(static_cast<std::size_t>(system));
@@ -329,10 +364,18 @@ class Solver final : public LatticeSolver {
   }
 
   void write_state(int system, const std::vector<double>& f) override {
+    check_system(system);
     if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
-    for (int m = 0; m < 19; ++m)
-      for (std::size_t i = 0; i < count_; ++i) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
+    // Interior nodes only. Boundary nodes' slots are never read by a step, but a Krylov solve
+    // copies the state into its vectors, and the slots no step writes must stay 0 there (else
+    // y = A x keeps y's old values in them and A is no longer linear).
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x) {
+          const std::size_t i = d_.index(x, y, z);
+          for (int m = 0; m < 19; ++m) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
+        }
     GPU_CHECK(gpuMemcpy(level_ptr(system, level_), raw.data(), raw.size() * sizeof(T), gpuMemcpyHostToDevice));
     bind();
     inflow(level_ptr(0, 0), false);
@@ -436,6 +479,12 @@ class Solver final : public LatticeSolver {
     GPU_CHECK(gpuGetLastError());
   }
 
+  // A system of the current batch: anything else would address device memory past the state.
+  void check_system(int system) const {
+    if (system < 0 || system >= static_cast<int>(batch_.size()))
+      throw std::out_of_range("cuda backend: system " + std::to_string(system) + " is not in the batch");
+  }
+
   T* vec(int v) const { return vectors_.at(static_cast<std::size_t>(v))->get(); }
   std::size_t vector_bytes() const { return 19 * static_cast<std::size_t>(stride_) * sizeof(T); }
 
@@ -480,12 +529,18 @@ class CudaBackend final : public Backend {
  public:
   explicit CudaBackend(int device) : device_(device) {
     int count = 0;
-    GPU_CHECK(gpuGetDeviceCount(&count));
+    const gpuError_t err = gpuGetDeviceCount(&count);
+    if (err != gpuSuccess) {
+      (void)gpuGetLastError();
+      throw Error(ErrorCategory::Unavailable, std::string("no usable GPU: ") + gpuGetErrorString(err));
+    }
     if (device < 0 || device >= count)
       throw Error(ErrorCategory::Unavailable,
                   "GPU " + std::to_string(device) + " does not exist (" + std::to_string(count) + " present)");
     GPU_CHECK(gpuSetDevice(device));
     GPU_CHECK(gpuGetDeviceProperties(&props_, device));
+    const std::string no_code = kernel_image_problem(device);
+    if (!no_code.empty()) throw Error(ErrorCategory::Unavailable, no_code);
   }
   std::string name() const override { return "cuda"; }
   std::string description() const override {
@@ -519,7 +574,13 @@ class CudaBackend final : public Backend {
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {
     GPU_CHECK(gpuSetDevice(device_));
-    const int capacity = std::clamp(options.max_systems > 0 ? options.max_systems : 1, 1, kMaxBatch);
+    // Asking for more than one launch holds is an error here, not a silent clamp: callers that
+    // fill batches of max_systems (bench --systems) would otherwise fail in reset() with a
+    // logic_error about the solver's capacity.
+    if (options.max_systems > kMaxBatch)
+      throw Error(ErrorCategory::InvalidInput, "the cuda backend runs at most " + std::to_string(kMaxBatch) +
+                                                   " systems per batch, not " + std::to_string(options.max_systems));
+    const int capacity = options.max_systems > 0 ? options.max_systems : 1;
     switch (options.precision) {
       case Precision::Float32: return std::make_unique<Solver<float>>(g, channels, capacity);
       case Precision::Float16: return std::make_unique<Solver<gpu_half>>(g, channels, capacity);
@@ -559,9 +620,17 @@ class CudaBackend final : public Backend {
 std::string cuda_unavailable_reason() {
   int count = 0;
   const gpuError_t err = gpuGetDeviceCount(&count);
-  if (err != gpuSuccess) return std::string("no usable GPU: ") + gpuGetErrorString(err);
+  if (err != gpuSuccess) {
+    (void)gpuGetLastError();
+    return std::string("no usable GPU: ") + gpuGetErrorString(err);
+  }
   if (count == 0) return "no GPU found";
-  return "";
+  int device = 0;
+  if (gpuGetDevice(&device) != gpuSuccess) {
+    (void)gpuGetLastError();
+    device = 0;
+  }
+  return gpu::kernel_image_problem(device);
 }
 
 std::unique_ptr<Backend> make_cuda_backend(int device) { return std::make_unique<gpu::CudaBackend>(device); }

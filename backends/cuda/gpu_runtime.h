@@ -39,6 +39,9 @@
 #define gpuEventRecord hipEventRecord
 #define gpuEventSynchronize hipEventSynchronize
 #define gpuEventElapsedTime hipEventElapsedTime
+#define gpuErrorMemoryAllocation hipErrorOutOfMemory
+#define gpuFuncAttributes hipFuncAttributes
+#define gpuFuncGetAttributes hipFuncGetAttributes
 using gpu_half = __half;
 #else
 #include <cuda_fp16.h>
@@ -73,14 +76,20 @@ using gpu_half = __half;
 #define gpuEventRecord cudaEventRecord
 #define gpuEventSynchronize cudaEventSynchronize
 #define gpuEventElapsedTime cudaEventElapsedTime
+#define gpuErrorMemoryAllocation cudaErrorMemoryAllocation
+#define gpuFuncAttributes cudaFuncAttributes
+#define gpuFuncGetAttributes cudaFuncGetAttributes
 using gpu_half = __half;
 #endif
 
 namespace lblight::gpu {
 
-// Throws lblight::Error naming the failed call, its file and line.
+// Throws lblight::Error naming the failed call, its file and line. The runtime also records the
+// error for the next gpuGetLastError(); that record is cleared here, or a caught failure (say, an
+// allocation too large) would be reported again by the next launch check as that launch's error.
 inline void check(gpuError_t err, const char* what, const char* file, int line) {
   if (err == gpuSuccess) return;
+  (void)gpuGetLastError();
   throw Error(ErrorCategory::Internal, std::string("GPU call ") + what + " failed at " + file + ":" +
                                            std::to_string(line) + ": " + gpuGetErrorString(err));
 }
