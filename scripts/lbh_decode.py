@@ -49,7 +49,7 @@ class Stream:
         version, tag, hb, eb, file_bytes, count, flags = struct.unpack_from("<IIIIQII", d, 8)
         if tag != 0x01020304:
             raise LbhError("bad endianness tag")
-        if version != 1:
+        if version not in (1, 2):
             raise LbhError("unsupported version %d" % version)
         if hb != 256 or eb != 128 or flags != 0:
             raise LbhError("bad header sizes or flags")
@@ -79,19 +79,39 @@ class Stream:
             t_param, t_abs, max_abs = struct.unpack_from("<3f", d, e + 36)
             bc, cc, mo, oo, co = struct.unpack_from("<5Q", d, e + 48)
             mcrc, ocrc, ccrc = struct.unpack_from("<3I", d, e + 88)
+            encoding = struct.unpack_from("<I", d, e + 100)[0]
             fast = struct.unpack_from("<Q", d, e + 104)[0]
+            step, dcrc = struct.unpack_from("<fI", d, e + 120)
+            if encoding not in (0, 1) or (encoding == 1 and version < 2):
+                raise LbhError("solution %d: bad coefficient encoding %d" % (s, encoding))
+            q8 = encoding == 1
+            if q8 and not (step > 0 and math.isfinite(step)):
+                raise LbhError("solution %d: bad quantisation step" % s)
+            if not q8 and (step != 0 or dcrc != 0):
+                raise LbhError("solution %d: bytes 120..127 must be 0 for f32" % s)
             if bc != nblocks or not bc <= cc <= 64 * bc:
                 raise LbhError("solution %d: bad counts" % s)
-            for off, size in ((mo, 8 * bc), (oo, 4 * bc), (co, 12 * cc)):
-                if off != align64(pos) or off + size > len(d):
+            # f32: masks, offsets, coefficients; q8: masks, offsets, averages, details (offset implied)
+            sections = [(mo, 8 * bc), (oo, 4 * bc), (co, 12 * (bc if q8 else cc))]
+            if q8:
+                sections.append((None, 3 * (cc - bc)))
+            starts = []
+            for off, size in sections:
+                start = align64(pos)
+                if (off is not None and off != start) or start + size > len(d):
                     raise LbhError("solution %d: section not at its canonical offset" % s)
-                pos = off + size
-            if zlib.crc32(d[mo:mo + 8 * bc]) != mcrc or zlib.crc32(d[oo:oo + 4 * bc]) != ocrc or \
-                    zlib.crc32(d[co:co + 12 * cc]) != ccrc:
-                raise LbhError("solution %d: section CRC mismatch" % s)
+                if any(d[pos:start]):
+                    raise LbhError("solution %d: padding not zero" % s)
+                starts.append(start)
+                pos = start + size
+            crcs = [mcrc, ocrc, ccrc] + ([dcrc] if q8 else [])
+            for (start, (_, size)), crc in zip(zip(starts, sections), crcs):
+                if zlib.crc32(d[start:start + size]) != crc:
+                    raise LbhError("solution %d: section CRC mismatch" % s)
             masks = struct.unpack_from("<%dQ" % bc, d, mo)
             offsets = struct.unpack_from("<%dI" % bc, d, oo)
-            coeffs = struct.unpack_from("<%df" % (3 * cc), d, co)
+            coeffs = struct.unpack_from("<%df" % (3 * (bc if q8 else cc)), d, co)
+            details = struct.unpack_from("<%db" % (3 * (cc - bc)), d, starts[3]) if q8 else None
             running = 0
             for b in range(bc):
                 if not masks[b] & 1 or offsets[b] != running:
@@ -100,7 +120,8 @@ class Stream:
             if running != cc or sum(1 for m in masks if m == 1) != fast:
                 raise LbhError("solution %d: counts inconsistent" % s)
             self.solutions.append(dict(name=name, index=index, direction=(dx, dy, dz), mode=mode,
-                                       threshold=t_abs, masks=masks, offsets=offsets, coeffs=coeffs))
+                                       threshold=t_abs, masks=masks, offsets=offsets, coeffs=coeffs,
+                                       details=details, step=step))
         if pos != len(d):
             raise LbhError("trailing bytes")
 
@@ -121,7 +142,12 @@ class Stream:
             k = 0
             for l in range(64):
                 if mask >> l & 1:
-                    v[l] = s["coeffs"][3 * (first + k) + ch]
+                    if s["details"] is None:      # f32: k-th kept coefficient at offset + k
+                        v[l] = s["coeffs"][3 * (first + k) + ch]
+                    elif k == 0:                  # q8: the average of block b at b
+                        v[l] = s["coeffs"][3 * b + ch]
+                    else:                         # q8: k-th detail at offset - b + k - 1, times the step
+                        v[l] = f32(s["step"] * s["details"][3 * (first - b + k - 1) + ch])
                     k += 1
             if mask != 1:
                 for i in range(16):          # x

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include "lblight/compress/haar.h"
@@ -51,7 +52,7 @@ struct Encoded {
   std::string bytes;
 };
 
-Encoded encode(const Dims& d, LbhThreshold t, unsigned seed = 1, float noise = 0.02f, int threads = 2) {
+Encoded encode(const Dims& d, LbhSettings t, unsigned seed = 1, float noise = 0.02f, int threads = 2) {
   Encoded e;
   e.frame = frame_of(d);
   e.field = make_field(d, seed, noise);
@@ -178,18 +179,29 @@ TEST_CASE("Threshold 0 round-trips every node to float rounding", "[haar]") {
 
 TEST_CASE("The max error never exceeds the bound the threshold implies", "[haar]") {
   const Dims d{20, 17, 14};
+  const LbhCoefficients coeffs = GENERATE(LbhCoefficients::F32, LbhCoefficients::Q8);
   for (double rel : {0.001, 0.01, 0.03, 0.1, 0.5}) {
-    const Encoded e = encode(d, {rel, true}, 7, 0.05f);
+    const Encoded e = encode(d, {rel, true, coeffs}, 7, 0.05f);
     const LbhStats& st = e.sols[0].stats;
     const double t = e.sols[0].threshold;
-    INFO("relative threshold " << rel << ", t = " << t);
+    const bool q8 = coeffs == LbhCoefficients::Q8;
+    INFO((q8 ? "q8" : "f32") << ", relative threshold " << rel << ", t = " << t << ", step " << e.sols[0].step);
     CHECK(t == Approx(rel * st.max_abs_value));
+    CHECK((e.sols[0].encoding == lbh::Encoding::Q8) == q8);
     const double eps = 2e-6 * st.max_abs_value;  // float rounding of the filters
-    // measured over every stored value (forward borders included) <= sum of dropped |c| on the
-    // value's path <= 26 t
+    // Per coefficient on a value's path: a dropped one is off by < t, a quantised one by <= step / 2
+    // (0 for f32); the step is t / 2 unless the largest kept detail needs 127 coarser steps.
+    double per_coeff = t;
+    if (q8) {
+      CHECK(e.sols[0].step >= 0.5 * t * (1 - 1e-6));
+      if (rel >= 0.01) CHECK(e.sols[0].step <= 0.5 * t * (1 + 1e-6));  // details here are < 63.5 t
+      per_coeff = std::max(t, 0.5 * e.sols[0].step * (1 + 1e-6));
+    }
+    // measured over every stored value (forward borders included) <= sum of coefficient errors on
+    // the value's path <= 26 per_coeff
     CHECK(st.max_abs_error <= st.max_abs_error_block);
     CHECK(st.max_abs_error_block <= st.error_bound + eps);
-    CHECK(st.error_bound < haar::kMaxDetailsPerValue * t);
+    CHECK(st.error_bound < haar::kMaxDetailsPerValue * per_coeff);
     // recompute independently from the decoded lattice
     const lbh::Stream s = open_ok(e.bytes);
     const std::vector<float> dec = s.decode_all(0);
@@ -202,9 +214,41 @@ TEST_CASE("The max error never exceeds the bound the threshold implies", "[haar]
       }
     CHECK(worst == Approx(st.max_abs_error).margin(1e-7));
     CHECK(std::sqrt(sq / (3.0 * d.count())) == Approx(st.rms_error).epsilon(1e-6).margin(1e-9));
-    CHECK(worst <= haar::kMaxDetailsPerValue * t + eps);
-    CHECK(st.ratio == Approx(d.count() * 12.0 / (st.blocks * 12.0 + st.coefficients * 12.0)));
+    CHECK(worst <= haar::kMaxDetailsPerValue * per_coeff + eps);
+    const double coeff_bytes = q8 ? st.blocks * 12.0 + (st.coefficients - st.blocks) * 3.0 : st.coefficients * 12.0;
+    CHECK(st.ratio == Approx(d.count() * 12.0 / (st.blocks * 12.0 + coeff_bytes)));
+    CHECK(st.stream_bytes == lbh::Stream(open_ok(e.bytes)).info(0).stream_bytes());
   }
+}
+
+TEST_CASE("8-bit details: same mask as f32, error within half a step, about 2.5x smaller", "[haar]") {
+  const Dims d{20, 17, 14};
+  const Encoded f = encode(d, {0.01, true, LbhCoefficients::F32}, 7, 0.05f);
+  const Encoded q = encode(d, {0.01, true}, 7, 0.05f);  // auto: q8 because the threshold is > 0
+  const LbhEncoded &ef = f.sols[0], &eq = q.sols[0];
+  REQUIRE(eq.encoding == lbh::Encoding::Q8);
+  CHECK(ef.masks == eq.masks);  // the same coefficients are kept
+  CHECK(ef.offsets == eq.offsets);
+  CHECK(eq.step == Approx(0.5 * eq.threshold));
+  // the averages are stored exactly; every detail within step / 2 of the f32 one
+  for (std::size_t b = 0; b < ef.masks.size(); ++b) {
+    const float* cf = ef.coeffs.data() + 3 * ef.offsets[b];
+    for (int c = 0; c < 3; ++c) CHECK(eq.coeffs[3 * b + c] == cf[c]);
+    const std::int8_t* dq = eq.details.data() + 3 * (eq.offsets[b] - b);
+    for (int k = 1; k < lbh::popcount64(ef.masks[b]); ++k)
+      for (int c = 0; c < 3; ++c) CHECK(std::fabs(cf[3 * k + c] - eq.step * dq[3 * (k - 1) + c]) <= 0.5f * eq.step * 1.0001f);
+  }
+  CHECK(eq.stats.ratio > 2.0 * ef.stats.ratio);
+  CHECK(eq.stats.rms_error < 1.2 * ef.stats.rms_error);
+  CHECK(lbh::detail::rd32(reinterpret_cast<const unsigned char*>(q.bytes.data()) + 8) == 2u);  // version 2
+  CHECK(lbh::detail::rd32(reinterpret_cast<const unsigned char*>(f.bytes.data()) + 8) == 1u);  // f32 only: 1
+  // threshold 0: auto stays lossless f32; asking for q8 anyway is lossy, within its bound
+  CHECK(encode(d, {0.0, false}).sols[0].encoding == lbh::Encoding::F32);
+  const Encoded z = encode(d, {0.0, false, LbhCoefficients::Q8}, 7, 0.05f);
+  CHECK(z.sols[0].stats.max_abs_error > 0.0);
+  CHECK(z.sols[0].stats.max_abs_error <= z.sols[0].stats.error_bound * (1 + 1e-6) + 1e-6);
+  CHECK(z.sols[0].stats.error_bound <= haar::kMaxDetailsPerValue * 0.5 * z.sols[0].step * (1 + 1e-6));
+  open_ok(z.bytes);
 }
 
 TEST_CASE("Error bound of one block is attained by a worst-case pattern", "[haar]") {
@@ -402,7 +446,10 @@ TEST_CASE("CRC-32 is zlib's", "[reader]") {
 }
 
 TEST_CASE("Reader rejects truncated, corrupted, wrong-version and oversized files", "[reader]") {
-  const Encoded e = encode({5, 4, 3}, {0.05, true});
+  const LbhCoefficients coeffs = GENERATE(LbhCoefficients::F32, LbhCoefficients::Q8);
+  const bool q8 = coeffs == LbhCoefficients::Q8;
+  INFO((q8 ? "q8" : "f32"));
+  const Encoded e = encode({5, 4, 3}, {0.05, true, coeffs});
   const std::string good = e.bytes;
   open_ok(good);
   auto status_of = [](const std::string& b, std::string* msg = nullptr) {
@@ -441,7 +488,13 @@ TEST_CASE("Reader rejects truncated, corrupted, wrong-version and oversized file
     const std::uint64_t coeffs = lbh::detail::rd64(reinterpret_cast<const unsigned char*>(b.data()) + 256 + 80);
     b[coeffs + 5] ^= 1;
     CHECK(status_of(b, &msg) == lbh::Status::ChecksumMismatch);
-    CHECK(msg.find("coefficients CRC-32") != std::string::npos);
+    CHECK(msg.find(q8 ? "averages CRC-32" : "coefficients CRC-32") != std::string::npos);
+    if (q8) {
+      b = good;
+      b[b.size() - 1] ^= 1;  // the last detail
+      CHECK(status_of(b, &msg) == lbh::Status::ChecksumMismatch);
+      CHECK(msg.find("details CRC-32") != std::string::npos);
+    }
     b = good;
     b[300] ^= 1;  // inside the table entry (threshold fields)
     CHECK(status_of(b, &msg) == lbh::Status::ChecksumMismatch);
@@ -452,10 +505,15 @@ TEST_CASE("Reader rejects truncated, corrupted, wrong-version and oversized file
   }
   SECTION("wrong version, magic, endianness") {
     std::string b = good;
-    put32(b, 8, 2);
+    put32(b, 8, 3);
     fix_header_crc(b);
     CHECK(status_of(b, &msg) == lbh::Status::UnsupportedVersion);
-    CHECK(msg.find("version 2") != std::string::npos);
+    CHECK(msg.find("version 3") != std::string::npos);
+    b = good;  // f32 files are written as version 1 and are valid version 2 files; q8 needs version 2
+    put32(b, 8, q8 ? 1 : 2);
+    fix_header_crc(b);
+    CHECK(status_of(b, &msg) == (q8 ? lbh::Status::BadHeader : lbh::Status::Ok));
+    if (q8) CHECK(msg.find("version 1 allows only 0") != std::string::npos);
     b = good;
     put32(b, 8, 0);
     CHECK(status_of(b) == lbh::Status::UnsupportedVersion);
@@ -514,6 +572,30 @@ TEST_CASE("Reader rejects truncated, corrupted, wrong-version and oversized file
     put32(b, 256 + 92, lbh::crc32(b.data() + offsets, lbh::detail::rd64(p + 256 + 48) * 4));
     fix_table_crc(b);
     CHECK(status_of(b) == lbh::Status::Inconsistent);
+    if (q8) {
+      const std::uint64_t blocks = lbh::detail::rd64(p + 256 + 48), kept = lbh::detail::rd64(p + 256 + 56);
+      REQUIRE(kept > blocks);
+      const std::size_t details = b.size() - 3 * (kept - blocks);  // the last section
+      b = good;
+      b[details] = static_cast<char>(0x80);  // -128: outside -127..127
+      put32(b, 256 + 124, lbh::crc32(b.data() + details, 3 * (kept - blocks)));
+      fix_table_crc(b);
+      CHECK(status_of(b, &msg) == lbh::Status::Inconsistent);
+      CHECK(msg.find("-128") != std::string::npos);
+      for (const float step : {0.0f, -1.0f, std::numeric_limits<float>::infinity(), 1e38f}) {
+        b = good;
+        std::uint32_t u;
+        std::memcpy(&u, &step, 4);
+        put32(b, 256 + 120, u);
+        fix_table_crc(b);
+        CHECK(status_of(b, &msg) == lbh::Status::BadHeader);
+        CHECK(msg.find("quantisation step") != std::string::npos);
+      }
+      b = good;
+      put32(b, 256 + 100, 2);  // an unknown encoding
+      fix_table_crc(b);
+      CHECK(status_of(b, &msg) == lbh::Status::BadHeader);
+    }
   }
   SECTION("files") {
     lbh::Stream s;

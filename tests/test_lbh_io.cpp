@@ -78,7 +78,9 @@ std::vector<std::pair<std::string, std::string>> seed_streams() {
       char name[8];
       std::snprintf(name, sizeof name, "B%02d", m);
       sols.push_back(encode_lbh_solution(
-          f, {name, m, {lbh::lattice_cx(m), lbh::lattice_cy(m), lbh::lattice_cz(m)}, &rgb}, {c.t, c.t > 0}, 1));
+          f, {name, m, {lbh::lattice_cx(m), lbh::lattice_cy(m), lbh::lattice_cz(m)}, &rgb},
+          // two_solutions mixes the encodings (f32, then 8-bit details); lossy ones default to 8-bit
+          {c.t, c.t > 0, c.solutions == 2 && s == 0 ? LbhCoefficients::F32 : LbhCoefficients::Auto}, 1));
     }
     out.emplace_back(c.name, serialize_lbh(f, sols));
   }
@@ -158,7 +160,12 @@ TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics
     CHECK(s.info(slot).threshold_mode == 1);
     // The manifest's sizes and errors (issue 4): bytes and ratio against float RGB, RMS and max
     // error over all lattice nodes and channels, encode time.
-    CHECK(c["compressed_bytes"] == 12 * (c["blocks"].get<std::uint64_t>() + c["coefficients"].get<std::uint64_t>()));
+    // 8-bit details by default (threshold > 0): 12 bytes of mask and offset plus a 12-byte average
+    // per block, 3 bytes per kept detail
+    CHECK(c["coefficient_encoding"] == "q8");
+    CHECK(c["quant_step"].get<double>() <= 0.5 * c["threshold"].get<double>() * (1 + 1e-6));
+    const std::uint64_t blocks = c["blocks"], kept = c["coefficients"];
+    CHECK(c["compressed_bytes"] == 24 * blocks + 3 * (kept - blocks));
     CHECK(c["compressed_bytes"] == s.info(slot).stream_bytes());
     CHECK(c["encode_seconds"].get<double>() >= 0.0);
     const std::vector<float> dec = s.decode_all(static_cast<std::size_t>(slot));

@@ -16,7 +16,7 @@ namespace lblight::cli {
 namespace {
 
 struct CompressArgs {
-  std::string input, output, grids;
+  std::string input, output, grids, coefficients = "auto";
   double threshold = -1;
   bool relative = false, json = false;
   int threads = 0;
@@ -45,7 +45,8 @@ int run_compress(const CompressArgs& a) {
     while (std::getline(ss, g, ','))
       if (!g.empty()) grids.push_back(g);
   }
-  const LbhFileContents c = compress_vdb(in, {a.threshold, a.relative}, grids, a.threads);
+  const LbhFileContents c =
+      compress_vdb(in, {a.threshold, a.relative, *parse_lbh_coefficients(a.coefficients)}, grids, a.threads);
   write_lbh(out, c.frame, c.solutions);
 
   nlohmann::json j;
@@ -54,7 +55,7 @@ int run_compress(const CompressArgs& a) {
   j["file_bytes"] = fs::file_size(out);
   j["solutions"] = nlohmann::json::array();
   double float_bytes = 0, stream_bytes = 0;
-  Table t({"grid", "threshold", "ratio", "rms error", "max error", "max |value|", "fast blocks", "encode s"});
+  Table t({"grid", "threshold", "coeffs", "ratio", "rms error", "max error", "max |value|", "fast blocks", "encode s"});
   for (const LbhEncoded& e : c.solutions) {
     const LbhStats& s = e.stats;
     float_bytes += static_cast<double>(s.float_rgb_bytes);
@@ -62,7 +63,7 @@ int run_compress(const CompressArgs& a) {
     nlohmann::json row = lbh_stats_json(e, out.filename().string());
     row["grid"] = e.name;
     j["solutions"].push_back(row);
-    t.add({e.name, format_error(s.threshold), format_ratio(s.ratio), format_error(s.rms_error),
+    t.add({e.name, format_error(s.threshold), e.encoding == lbh::Encoding::Q8 ? "q8" : "f32", format_ratio(s.ratio), format_error(s.rms_error),
            format_error(s.max_abs_error), format_error(s.max_abs_value),
            std::to_string(s.fast_blocks) + "/" + std::to_string(s.blocks), format_seconds(s.encode_seconds)});
   }
@@ -96,6 +97,12 @@ Command add_compress_command(CLI::App& app, const GlobalOptions&) {
       ->required()
       ->check(CLI::Range(0.0, 1e30));
   cmd->add_flag("--relative", args->relative, "Threshold relative to each grid's largest |value| (e.g. 0.01 = 1%)");
+  cmd->add_option("--coefficients", args->coefficients,
+                  "Storage of kept coefficients: f32 (every coefficient as 3 floats, as 001), q8 (block average as "
+                  "floats, details as 8-bit multiples of a step <= threshold / 2; about 2.5x smaller at the same "
+                  "threshold), auto (q8 when the threshold is > 0, else f32)")
+      ->check(CLI::IsMember({"auto", "f32", "q8"}))
+      ->capture_default_str();
   cmd->add_option("-o,--output", args->output, "Output .lbh (default: the input with extension .lbh)");
   cmd->add_option("--grids", args->grids, "Comma-separated grid names (default: every Vec3f grid)");
   cmd->add_option("--threads", args->threads, "Encoder threads (0 = all cores)")->check(CLI::Range(0, 4096));

@@ -108,6 +108,8 @@ nlohmann::json lbh_summary(const fs::path& file) {
     e["blocks"] = in.block_count;
     e["fast_path_blocks"] = in.fast_blocks;
     e["coefficients"] = in.coeff_count;
+    e["coefficient_encoding"] = in.encoding == lbh::Encoding::Q8 ? "q8" : "f32";
+    if (in.encoding == lbh::Encoding::Q8) e["quant_step"] = in.quant_step;
     e["compressed_bytes"] = in.stream_bytes();
     e["float_rgb_bytes"] = nodes * 12;
     e["ratio"] = nodes * 12 / static_cast<double>(in.stream_bytes());
@@ -137,7 +139,7 @@ std::string lbh_text(const nlohmann::json& j) {
     o << r << ":1";
     return o.str();
   };
-  Table t({"grid", "index", "direction", "threshold", "blocks", "fast path", "coefficients", "bytes", "ratio",
+  Table t({"grid", "index", "direction", "threshold", "blocks", "fast path", "coefficients", "stored as", "bytes", "ratio",
            "rms error", "max error"});
   for (const auto& e : j["solutions"]) {
     const auto dir = e["direction"];
@@ -149,6 +151,7 @@ std::string lbh_text(const nlohmann::json& j) {
     t.add({e["name"], std::to_string(e["index"].get<int>()),
            format_direction({dir[0].get<int>(), dir[1].get<int>(), dir[2].get<int>()}),
            format_error(e["threshold"].get<double>()), e["blocks"].dump(), fast.str(), e["coefficients"].dump(),
+           e["coefficient_encoding"] == "q8" ? "q8, step " + format_error(e["quant_step"].get<double>()) : "f32",
            format_bytes(e["compressed_bytes"].get<double>()), ratio(e["ratio"].get<double>()),
            format_error(e["rms_error"].get<double>()), format_error(e["max_abs_error"].get<double>())});
   }

@@ -46,6 +46,10 @@ float dropped_path_bound(const Block& c, std::uint64_t mask) {
       for (int k = 0; k < 3; ++k) m = std::max(m, std::fabs(c[k][l]));
     drop[l] = m;
   }
+  return path_error_bound(drop);
+}
+
+float path_error_bound(const float* drop) {
   // Frequencies on the path of position p along one axis: 0, 1 and 2 + p / 2.
   float worst = 0.0f;
   for (int z = 0; z < 4; ++z)

@@ -41,6 +41,10 @@ std::uint64_t keep_mask(const Block& coeffs, float threshold);
 // is below t, the result is < 26 t (0 for t = 0).
 float dropped_path_bound(const Block& coeffs, std::uint64_t mask);
 
+// The same for any per-coefficient error (max over channels): the largest sum of error[l] over the
+// 27 coefficients on the path of one of the 64 values.
+float path_error_bound(const float* error64);
+
 inline constexpr int kMaxDetailsPerValue = 26;
 
 }  // namespace lblight::haar

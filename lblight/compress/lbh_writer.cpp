@@ -18,7 +18,22 @@ namespace {
 struct SlabStats {
   double sum_sq = 0, max_err = 0, max_err_block = 0, bound = 0;
   std::uint64_t fast = 0;
+  float max_detail = 0;  // largest |kept detail coefficient| over channels (pass 1)
 };
+
+// The Q8 step: at most half the threshold, and coarse enough that the largest kept detail fits
+// in -127..127 (docs/lbh-format.md sec. 3.4). Never 0 (a solution without details gets 1).
+float q8_step(float threshold, float max_detail) {
+  const double wanted = std::max(0.5 * threshold, static_cast<double>(max_detail) / lbh::kQ8Max);
+  float step = wanted > 0 ? static_cast<float>(wanted) : 1.0f;
+  while (std::nearbyint(static_cast<double>(max_detail) / step) > lbh::kQ8Max) step = std::nextafter(step, 2 * step);
+  return step;
+}
+
+std::int8_t quantise(float c, float step) {
+  const double q = std::nearbyint(static_cast<double>(c) / step);
+  return static_cast<std::int8_t>(std::clamp(q, -double{lbh::kQ8Max}, double{lbh::kQ8Max}));
+}
 
 // Runs fn(slab) for slab = 0..count-1 on up to `threads` threads.
 template <typename Fn>
@@ -67,7 +82,7 @@ std::uint64_t align64(std::uint64_t v) { return (v + 63) / 64 * 64; }
 
 }  // namespace
 
-LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhThreshold& threshold,
+LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhSettings& threshold,
                                int threads) {
   const auto t0 = std::chrono::steady_clock::now();
   const Dims& d = frame.dims;
@@ -104,6 +119,9 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
   const double t_abs = threshold.relative ? threshold.value * max_abs : threshold.value;
   out.threshold = static_cast<float>(t_abs);
   if (!std::isfinite(out.threshold)) throw_invalid("threshold overflows a float", where);
+  const bool q8 = threshold.coefficients == LbhCoefficients::Q8 ||
+                  (threshold.coefficients == LbhCoefficients::Auto && out.threshold > 0);
+  out.encoding = q8 ? lbh::Encoding::Q8 : lbh::Encoding::F32;
 
   const int nb[3] = {haar::blocks_along(d.nx), haar::blocks_along(d.ny), haar::blocks_along(d.nz)};
   const std::uint64_t nblocks = static_cast<std::uint64_t>(nb[0]) * nb[1] * nb[2];
@@ -112,16 +130,26 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
   out.offsets.assign(nblocks, 0u);
   const std::size_t slab = static_cast<std::size_t>(nb[0]) * nb[1];
 
-  // Pass 1: transform and threshold every block, keep the masks.
+  // Pass 1: transform and threshold every block, keep the masks (and the largest kept detail).
+  std::vector<SlabStats> stats(static_cast<std::size_t>(nb[2]));
   parallel_slabs(nb[2], threads, [&](int bz) {
     haar::Block blk;
     for (int by = 0; by < nb[1]; ++by)
       for (int bx = 0; bx < nb[0]; ++bx) {
         haar::gather_block(rgb, d, bx, by, bz, blk);
         haar::forward(blk);
-        out.masks[bz * slab + static_cast<std::size_t>(by) * nb[0] + bx] = haar::keep_mask(blk, out.threshold);
+        const std::uint64_t mask = haar::keep_mask(blk, out.threshold);
+        out.masks[bz * slab + static_cast<std::size_t>(by) * nb[0] + bx] = mask;
+        float& dmax = stats[static_cast<std::size_t>(bz)].max_detail;
+        for (std::uint64_t m = mask & ~std::uint64_t{1}; m; m &= m - 1)
+          for (int c = 0; c < 3; ++c) dmax = std::max(dmax, std::fabs(blk[c][lbh::lowest_bit(m)]));
       }
   });
+  if (q8) {
+    float dmax = 0;
+    for (const SlabStats& st : stats) dmax = std::max(dmax, st.max_detail);
+    out.step = q8_step(out.threshold, dmax);
+  }
 
   // Offsets: prefix sums of the kept counts.
   std::uint64_t total = 0;
@@ -130,11 +158,12 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
     out.offsets[b] = static_cast<std::uint32_t>(total);
     total += static_cast<std::uint64_t>(lbh::popcount64(out.masks[b]));
   }
-  out.coeffs.assign(total * 3, 0.0f);
+  out.coeffs.assign((q8 ? nblocks : total) * 3, 0.0f);
+  if (q8) out.details.assign((total - nblocks) * 3, 0);
 
   // Pass 2: pack the kept coefficients, decode each block the way readers do and measure.
-  std::vector<SlabStats> stats(static_cast<std::size_t>(nb[2]));
-  const lbh::SolutionView view{out.masks.data(), out.offsets.data(), out.coeffs.data()};
+  const lbh::SolutionView view{out.masks.data(), out.offsets.data(), out.coeffs.data(),
+                               q8 ? out.details.data() : nullptr, out.step};
   parallel_slabs(nb[2], threads, [&](int bz) {
     haar::Block blk, orig;
     lbh::Rgb dec[64];
@@ -146,15 +175,31 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
         blk = orig;
         haar::forward(blk);
         const std::uint64_t mask = out.masks[b];
-        float* dst = out.coeffs.data() + 3ull * out.offsets[b];
-        for (std::uint64_t m = mask; m; m &= m - 1, dst += 3) {
-          const int l = lbh::lowest_bit(m);
-          dst[0] = blk[0][l];
-          dst[1] = blk[1][l];
-          dst[2] = blk[2][l];
+        // Error per coefficient (max over channels): |c| when dropped, |c - decoded c| when kept.
+        float err[64];
+        for (int l = 0; l < 64; ++l) {
+          err[l] = 0.0f;
+          if (!(mask >> l & 1u))
+            for (int c = 0; c < 3; ++c) err[l] = std::max(err[l], std::fabs(blk[c][l]));
+        }
+        if (q8) {
+          float* avg = out.coeffs.data() + 3 * b;
+          std::int8_t* q = out.details.data() + 3ull * (out.offsets[b] - b);
+          for (int c = 0; c < 3; ++c) avg[c] = blk[c][0];
+          for (std::uint64_t m = mask & ~std::uint64_t{1}; m; m &= m - 1, q += 3) {
+            const int l = lbh::lowest_bit(m);
+            for (int c = 0; c < 3; ++c) {
+              q[c] = quantise(blk[c][l], out.step);
+              err[l] = std::max(err[l], std::fabs(blk[c][l] - out.step * static_cast<float>(q[c])));
+            }
+          }
+        } else {
+          float* dst = out.coeffs.data() + 3ull * out.offsets[b];
+          for (std::uint64_t m = mask; m; m &= m - 1, dst += 3)
+            for (int c = 0; c < 3; ++c) dst[c] = blk[c][lbh::lowest_bit(m)];
         }
         st.fast += mask == 1u;
-        st.bound = std::max(st.bound, static_cast<double>(haar::dropped_path_bound(blk, mask)));
+        st.bound = std::max(st.bound, static_cast<double>(haar::path_error_bound(err)));
         lbh::decode_block(view, b, dec);
         for (int l = 0; l < 64; ++l) {
           const float got[3] = {dec[l].r, dec[l].g, dec[l].b};
@@ -192,7 +237,7 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
   s.blocks = nblocks;
   s.coefficients = total;
   s.float_rgb_bytes = s.nodes * 12u;
-  s.stream_bytes = nblocks * 12u + total * 12u;
+  s.stream_bytes = nblocks * 12u + (q8 ? nblocks * 12u + (total - nblocks) * 3u : total * 12u);
   s.ratio = static_cast<double>(s.float_rgb_bytes) / static_cast<double>(s.stream_bytes);
   s.max_abs_value = max_abs;
   s.threshold = out.threshold;
@@ -205,9 +250,11 @@ std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& 
   if (sols.empty() || sols.size() > lbh::kMaxSolutions)
     throw Error(ErrorCategory::Internal, "an .lbh file holds 1.." + std::to_string(lbh::kMaxSolutions) + " solutions");
   const std::uint64_t table_end = lbh::kHeaderBytes + sols.size() * lbh::kEntryBytes;
-  // Canonical layout: per solution masks, offsets, coefficients, each at the next multiple of 64.
-  std::vector<std::array<std::uint64_t, 3>> at(sols.size());
+  // Canonical layout: per solution masks, offsets, coefficients (F32) or averages and details
+  // (Q8), each at the next multiple of 64.
+  std::vector<std::array<std::uint64_t, 4>> at(sols.size());
   std::uint64_t pos = table_end;
+  bool any_q8 = false;
   for (std::size_t i = 0; i < sols.size(); ++i) {
     at[i][0] = align64(pos);
     pos = at[i][0] + sols[i].masks.size() * 8;
@@ -215,6 +262,11 @@ std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& 
     pos = at[i][1] + sols[i].offsets.size() * 4;
     at[i][2] = align64(pos);
     pos = at[i][2] + sols[i].coeffs.size() * 4;
+    if (sols[i].encoding == lbh::Encoding::Q8) {
+      any_q8 = true;
+      at[i][3] = align64(pos);
+      pos = at[i][3] + sols[i].details.size();
+    }
   }
   std::string s(pos, '\0');
 
@@ -231,7 +283,8 @@ std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& 
     putf32(s, t + 40, e.threshold);
     putf32(s, t + 44, e.max_abs_value);
     put64(s, t + 48, e.masks.size());
-    put64(s, t + 56, e.coeffs.size() / 3);
+    const bool q8 = e.encoding == lbh::Encoding::Q8;
+    put64(s, t + 56, q8 ? e.masks.size() + e.details.size() / 3 : e.coeffs.size() / 3);
     for (int k = 0; k < 3; ++k) put64(s, t + 64 + 8 * k, at[i][k]);
     if (!e.masks.empty()) std::memcpy(&s[at[i][0]], e.masks.data(), e.masks.size() * 8);  // little-endian host
     if (!e.offsets.empty()) std::memcpy(&s[at[i][1]], e.offsets.data(), e.offsets.size() * 4);
@@ -239,6 +292,12 @@ std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& 
     put32(s, t + 88, lbh::crc32(&s[at[i][0]], e.masks.size() * 8));
     put32(s, t + 92, lbh::crc32(&s[at[i][1]], e.offsets.size() * 4));
     put32(s, t + 96, lbh::crc32(&s[at[i][2]], e.coeffs.size() * 4));
+    if (q8) {
+      if (!e.details.empty()) std::memcpy(&s[at[i][3]], e.details.data(), e.details.size());
+      put32(s, t + 100, static_cast<std::uint32_t>(lbh::Encoding::Q8));
+      putf32(s, t + 120, e.step);
+      put32(s, t + 124, lbh::crc32(&s[at[i][3]], e.details.size()));
+    }
     put64(s, t + 104, e.stats.fast_blocks);
     putf32(s, t + 112, static_cast<float>(e.stats.max_abs_error));
     putf32(s, t + 116, static_cast<float>(e.stats.rms_error));
@@ -246,7 +305,7 @@ std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& 
 
   static const unsigned char magic[8] = {0x89, 'L', 'B', 'H', 0x0D, 0x0A, 0x1A, 0x0A};
   std::memcpy(&s[0], magic, 8);
-  put32(s, 8, lbh::kVersion);
+  put32(s, 8, any_q8 ? 2u : 1u);  // version 1 when every solution is F32: readable by version-1 readers
   put32(s, 12, lbh::kEndianTag);
   put32(s, 16, lbh::kHeaderBytes);
   put32(s, 20, lbh::kEntryBytes);
@@ -287,8 +346,26 @@ nlohmann::json lbh_stats_json(const LbhEncoded& e, const std::string& file_name)
   j["blocks"] = s.blocks;
   j["fast_path_blocks"] = s.fast_blocks;
   j["coefficients"] = s.coefficients;
+  j["coefficient_encoding"] = e.encoding == lbh::Encoding::Q8 ? "q8" : "f32";
+  if (e.encoding == lbh::Encoding::Q8) j["quant_step"] = e.step;
   j["encode_seconds"] = s.encode_seconds;
   return j;
+}
+
+std::optional<LbhCoefficients> parse_lbh_coefficients(const std::string& name) {
+  if (name == "auto") return LbhCoefficients::Auto;
+  if (name == "f32") return LbhCoefficients::F32;
+  if (name == "q8") return LbhCoefficients::Q8;
+  return std::nullopt;
+}
+
+const char* lbh_coefficients_name(LbhCoefficients c) {
+  switch (c) {
+    case LbhCoefficients::Auto: return "auto";
+    case LbhCoefficients::F32: return "f32";
+    case LbhCoefficients::Q8: return "q8";
+  }
+  return "?";
 }
 
 }  // namespace lblight

@@ -6,20 +6,34 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "lblight/lattice/lattice.h"
+#include "readers/lbh/lbh_reader.h"
 
 namespace lblight {
 
-// Absolute, or relative to the solution's largest |value| over all nodes and channels.
-struct LbhThreshold {
-  double value = 0.0;
+// How kept coefficients are stored (docs/lbh-format.md sec. 2.3): F32 as 001 does; Q8 keeps each
+// block's average in f32 and stores details as 8-bit multiples of a per-solution step of at most
+// half the threshold (so quantising a kept detail costs at most a quarter of what dropping one
+// may); Auto is Q8 when the applied threshold is > 0 and F32 (lossless) when it is 0.
+enum class LbhCoefficients { Auto, F32, Q8 };
+
+// What to compress with: the threshold, absolute or relative to the solution's largest |value|
+// over all nodes and channels, and the coefficient storage.
+struct LbhSettings {
+  double value = 0.0;  // the threshold
   bool relative = false;
+  LbhCoefficients coefficients = LbhCoefficients::Auto;
 };
+
+// "auto", "f32", "q8" (what scenes and the command line accept), or nullopt.
+std::optional<LbhCoefficients> parse_lbh_coefficients(const std::string& name);
+const char* lbh_coefficients_name(LbhCoefficients c);
 
 // The lattice every solution of one file shares: node (i, j, k) sits at index coordinate
 // index_min + (i, j, k); index_to_world is row-major and acts on (i, j, k, 1).
@@ -41,13 +55,14 @@ struct LbhSolutionIn {
 struct LbhStats {
   std::uint64_t nodes = 0, blocks = 0, fast_blocks = 0, coefficients = 0;
   std::uint64_t float_rgb_bytes = 0;  // nodes x 3 x 4
-  std::uint64_t stream_bytes = 0;     // masks (8) + offsets (4) per block + 12 per kept coefficient
+  std::uint64_t stream_bytes = 0;     // masks (8) + offsets (4) per block + coefficients as stored
   double ratio = 0;                   // float_rgb_bytes / stream_bytes
   double max_abs_value = 0;           // largest |value| of the original (the relative scale)
   double threshold = 0;               // absolute threshold applied
   double rms_error = 0, max_abs_error = 0;  // over nodes and channels
   double max_abs_error_block = 0;     // over every stored value, forward borders included
-  double error_bound = 0;             // max over values of the sum of dropped |coefficients| on its path
+  double error_bound = 0;             // max over values of the sum of coefficient errors (dropped or
+                                      // quantised) on its path
   double encode_seconds = 0;
 };
 
@@ -55,19 +70,22 @@ struct LbhEncoded {
   std::string name;
   int index = -1;
   std::array<int, 3> direction{};
-  LbhThreshold requested;
+  LbhSettings requested;
   float threshold = 0;      // absolute, as applied and stored
   float max_abs_value = 0;
+  lbh::Encoding encoding = lbh::Encoding::F32;
+  float step = 0;           // Q8: value of one integer step; F32: 0
   std::vector<std::uint64_t> masks;
   std::vector<std::uint32_t> offsets;
-  std::vector<float> coeffs;  // kept coefficients, 3 floats each
+  std::vector<float> coeffs;         // F32: kept coefficients, 3 floats each; Q8: block averages
+  std::vector<std::int8_t> details;  // Q8: kept details, 3 integers each
   LbhStats stats;
 };
 
 // Encodes one solution with `threads` threads (0 = all cores). Throws Error(InvalidInput) on
 // non-finite values or a negative/non-finite threshold. The result does not depend on the
 // thread count.
-LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhThreshold& threshold,
+LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhSettings& threshold,
                                int threads = 0);
 
 // The file bytes (docs/lbh-format.md) for the given solutions, in order.

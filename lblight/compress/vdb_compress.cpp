@@ -11,7 +11,7 @@
 
 namespace lblight {
 
-LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhThreshold& threshold,
+LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSettings& threshold,
                              const std::vector<std::string>& wanted, int threads) {
   const Location where{file.string(), {}, {}};
   const nlohmann::json info = inspect_vdb(file);

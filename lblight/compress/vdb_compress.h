@@ -18,7 +18,7 @@ struct LbhFileContents {
 // Encodes the Vec3f grids named in `grids` (empty: every Vec3f grid, in name order) of `file`.
 // All of them must share one lattice (dims, index box and transform). Solution index and
 // direction come from the grids' lblight_solution / lblight_direction metadata (-1 and 0 when absent).
-LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhThreshold& threshold,
+LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSettings& threshold,
                              const std::vector<std::string>& grids = {}, int threads = 0);
 
 // Decodes every solution of an .lbh into a Vec3f grid of the same name over the stored lattice

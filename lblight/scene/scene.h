@@ -96,6 +96,7 @@ struct LbhOutputSpec {
   bool enabled = false;
   double threshold = 0.01;  // >= 0; relative: fraction of each solution's largest |value| (<= 1)
   bool relative = true;
+  std::string coefficients = "auto";  // "auto" (8-bit details when threshold > 0), "f32" or "q8"
 };
 
 struct OutputSpec {

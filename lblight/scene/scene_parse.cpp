@@ -385,12 +385,20 @@ OutputSpec read_output(const JsonReader& r) {
   }
   if (!lbh.json().is_object())
     r.fail("expected true, false or an object {\"threshold\": number, \"relative\": bool}", "lbh");
-  lbh.only_keys({"threshold", "relative"});
+  lbh.only_keys({"threshold", "relative", "coefficients"});
   out.lbh.enabled = true;
   out.lbh.relative = lbh.boolean_or("relative", true);
   out.lbh.threshold = out.lbh.relative ? lbh.number_or("threshold", 0.01, 0.0, 1.0, "0 <= threshold <= 1 (a fraction "
                                                                                      "of each solution's maximum)")
                                        : lbh.number_or("threshold", 0.01, 0.0, 1e30, "threshold >= 0");
+  if (lbh.has("coefficients")) {
+    const JsonReader c = lbh.child("coefficients");
+    const std::string name = c.json().is_string() ? c.json().get<std::string>() : std::string();
+    if (name != "auto" && name != "f32" && name != "q8")
+      c.fail("coefficient storage " + c.json().dump() + " is not allowed; allowed: \"auto\" (8-bit details when "
+             "the threshold is > 0), \"f32\" (every kept coefficient as float), \"q8\" (8-bit details)");
+    out.lbh.coefficients = name;
+  }
   return out;
 }
 

@@ -1,15 +1,19 @@
-// lbh_reader.h - header-only reader for lblight's Haar-compressed sub-block streams (.lbh, version 1).
+// lbh_reader.h - header-only reader for lblight's Haar-compressed sub-block streams (.lbh, versions 1
+// and 2).
 //
 // Standard C++17 library only; no OpenVDB, no lblight. Drop this one file into a renderer.
 // The byte layout is specified in docs/lbh-format.md; in short (all little-endian):
 //
-//   offset 0    header, 256 bytes: magic 89 'L' 'B' 'H' 0D 0A 1A 0A, u32 version (1), u32 endian tag
+//   offset 0    header, 256 bytes: magic 89 'L' 'B' 'H' 0D 0A 1A 0A, u32 version (1 or 2), u32 endian tag
 //               0x01020304, sizes, lattice dims, index_min, sub-blocks per axis, f64[16] index-to-world,
 //               table offset + CRC-32, header CRC-32 (over bytes 0..251)
 //   offset 256  solution table: solution_count entries of 128 bytes (name, base-solution index and
 //               direction, threshold, counts, section offsets, CRC-32 of each section)
 //   then        per solution, each section starting at the next multiple of 64 (gaps zero):
-//               u64 mask[block_count], u32 offset[block_count], f32 rgb[coeff_count][3]
+//               u64 mask[block_count], u32 offset[block_count], f32 rgb[coeff_count][3]; or, for a
+//               solution with 8-bit details (version 2, encoding 1): u64 mask[block_count],
+//               u32 offset[block_count], f32 average[block_count][3], i8 detail[coeff_count - block_count][3]
+//               (detail value = quant_step x stored integer)
 //
 // Geometry (docs/lbh-format.md sec. 3). Lattice nodes (i, j, k), 0 <= i < nx, sit at integer
 // index coordinates index_min + (i, j, k) (voxel centres, as in the bake's .vdb). Sub-block
@@ -17,7 +21,8 @@
 // (3bx + x, 3by + y, 3bz + z), x, y, z in 0..3, each coordinate clamped to the last node, stored
 // Haar-transformed (z, then y, then x; two levels per axis). A kept coefficient is marked in the
 // block's 64-bit mask; offset[b] is the position of block b's first kept coefficient in the packed
-// array. A trilinear sample reads exactly one sub-block.
+// array (with 8-bit details: block b's averages at b, its k-th detail at offset[b] - b + k - 1).
+// A trilinear sample reads exactly one sub-block.
 //
 // Usage (host):
 //   lbh::Stream s;
@@ -51,7 +56,8 @@ namespace lbh {
 
 // ------------------------------------------------------------------------------------------------
 // Format constants (docs/lbh-format.md sec. 2)
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;          // newest version read and written
+constexpr std::uint32_t kOldestVersion = 1;    // version 1: f32 coefficients only (every encoding field 0)
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::uint32_t kHeaderBytes = 256;
 constexpr std::uint32_t kEntryBytes = 128;
@@ -64,6 +70,13 @@ constexpr int kBlockEdge = 4;                      // values per sub-block and a
 struct Rgb {
   float r, g, b;
 };
+
+// How a solution stores its kept coefficients (table entry offset 100; version 2).
+enum class Encoding : std::uint32_t {
+  F32 = 0,  // every kept coefficient as 3 f32 (the only encoding of version 1)
+  Q8 = 1,   // the block average as 3 f32, each kept detail as 3 i8 in units of quant_step
+};
+constexpr std::int8_t kQ8Max = 127;  // stored integers lie in -127..127
 
 // ------------------------------------------------------------------------------------------------
 // Bit helpers
@@ -145,8 +158,10 @@ struct Lattice {
 
 struct SolutionView {
   const std::uint64_t* masks = nullptr;    // block_count
-  const std::uint32_t* offsets = nullptr;  // block_count, in coefficients
-  const float* coeffs = nullptr;           // coeff_count x 3 (RGB)
+  const std::uint32_t* offsets = nullptr;  // block_count, in coefficients (averages included)
+  const float* coeffs = nullptr;           // F32: coeff_count x 3 (RGB); Q8: the averages, block_count x 3
+  const std::int8_t* details = nullptr;    // Q8 only: (coeff_count - block_count) x 3; null for F32
+  float step = 0.0f;                       // Q8 only: a detail is step x its stored integer
 };
 
 LBH_HOSTDEV inline std::uint64_t block_index(const Lattice& L, int bx, int by, int bz) {
@@ -156,22 +171,39 @@ LBH_HOSTDEV inline std::uint64_t block_index(const Lattice& L, int bx, int by, i
 }
 
 // Decodes sub-block b into its 64 RGB values (value (x, y, z) at x + 4y + 16z).
+// Where block b's average lies in s.coeffs.
+LBH_HOSTDEV inline const float* block_average(const SolutionView& s, std::uint64_t b) {
+  return s.coeffs + 3ull * (s.details ? b : static_cast<std::uint64_t>(s.offsets[b]));
+}
+
+// Q8: where block b's first kept detail lies in s.details (offsets count the averages too).
+LBH_HOSTDEV inline const std::int8_t* block_details(const SolutionView& s, std::uint64_t b) {
+  return s.details + 3ull * (static_cast<std::uint64_t>(s.offsets[b]) - b);
+}
+
 LBH_HOSTDEV inline void decode_block(const SolutionView& s, std::uint64_t b, Rgb* out) {
   const std::uint64_t mask = s.masks[b];
-  const float* c = s.coeffs + 3ull * s.offsets[b];
+  const float* avg = block_average(s, b);
   if (mask == 1u) {  // fast path: only the average kept, the block is constant
-    for (int i = 0; i < 64; ++i) out[i] = Rgb{c[0], c[1], c[2]};
+    for (int i = 0; i < 64; ++i) out[i] = Rgb{avg[0], avg[1], avg[2]};
     return;
   }
   float ch[3][64];
   for (int k = 0; k < 3; ++k)
     for (int i = 0; i < 64; ++i) ch[k][i] = 0.0f;
-  int slot = 0;
-  for (std::uint64_t m = mask; m; m &= m - 1, ++slot) {
-    const int l = lowest_bit(m);
-    ch[0][l] = c[3 * slot + 0];
-    ch[1][l] = c[3 * slot + 1];
-    ch[2][l] = c[3 * slot + 2];
+  if (s.details) {
+    for (int k = 0; k < 3; ++k) ch[k][0] = avg[k];
+    const std::int8_t* q = block_details(s, b);
+    for (std::uint64_t m = mask & ~std::uint64_t{1}; m; m &= m - 1, q += 3) {
+      const int l = lowest_bit(m);
+      for (int k = 0; k < 3; ++k) ch[k][l] = s.step * static_cast<float>(q[k]);
+    }
+  } else {
+    const float* c = avg;
+    for (std::uint64_t m = mask; m; m &= m - 1, c += 3) {
+      const int l = lowest_bit(m);
+      for (int k = 0; k < 3; ++k) ch[k][l] = c[k];
+    }
   }
   for (int k = 0; k < 3; ++k) haar_inverse_block(ch[k]);
   for (int i = 0; i < 64; ++i) out[i] = Rgb{ch[0][i], ch[1][i], ch[2][i]};
@@ -251,8 +283,20 @@ LBH_HOSTDEV inline Cell locate_world(const Lattice& L, float x, float y, float z
 // blending its 8 nodes). Reads one mask, one offset and the block's coefficients.
 LBH_HOSTDEV inline Rgb sample_cell(const SolutionView& s, const Cell& cell) {
   const std::uint64_t mask = s.masks[cell.block];
-  const float* c = s.coeffs + 3ull * s.offsets[cell.block];
+  const float* c = block_average(s, cell.block);
   if (mask == 1u) return Rgb{c[0], c[1], c[2]};  // fast path: constant block
+  if (s.details) {  // Q8: the average (weight w_x[0] w_y[0] w_z[0] = 1) plus the scaled details
+    float r = 0.0f, g = 0.0f, bl = 0.0f;
+    const std::int8_t* q = block_details(s, cell.block);
+    for (std::uint64_t m = mask & ~std::uint64_t{1}; m; m &= m - 1, q += 3) {
+      const int l = lowest_bit(m);
+      const float wt = cell.w[0][l & 3] * cell.w[1][(l >> 2) & 3] * cell.w[2][l >> 4];
+      r += wt * static_cast<float>(q[0]);
+      g += wt * static_cast<float>(q[1]);
+      bl += wt * static_cast<float>(q[2]);
+    }
+    return Rgb{c[0] + s.step * r, c[1] + s.step * g, c[2] + s.step * bl};
+  }
   Rgb out{0.0f, 0.0f, 0.0f};
   for (std::uint64_t m = mask; m; m &= m - 1, c += 3) {
     const int l = lowest_bit(m);
@@ -461,8 +505,17 @@ struct SolutionInfo {
   std::uint64_t masks_offset = 0, offsets_offset = 0, coeffs_offset = 0;
   std::uint32_t masks_crc = 0, offsets_crc = 0, coeffs_crc = 0;
   float max_abs_error = 0, rms_error = 0;  // recorded by the encoder (informational)
+  Encoding encoding = Encoding::F32;
+  float quant_step = 0;                    // Q8: value of one stored integer step; F32: 0
+  std::uint64_t details_offset = 0;        // Q8: the details section (canonical, after the averages)
+  std::uint32_t details_crc = 0;
+  std::uint64_t detail_count() const { return coeff_count - block_count; }
+  // Bytes of coefficients as stored: F32 12 per kept coefficient; Q8 12 per average + 3 per detail.
+  std::uint64_t coefficient_bytes() const {
+    return encoding == Encoding::Q8 ? block_count * 12u + detail_count() * 3u : coeff_count * 12u;
+  }
   // Bytes of masks + offsets + coefficients (the stream without header, table and padding).
-  std::uint64_t stream_bytes() const { return block_count * 12u + coeff_count * 12u; }
+  std::uint64_t stream_bytes() const { return block_count * 12u + coefficient_bytes(); }
 };
 
 namespace detail {
@@ -583,6 +636,10 @@ class Stream {
     v.masks = reinterpret_cast<const std::uint64_t*>(b + i.masks_offset);
     v.offsets = reinterpret_cast<const std::uint32_t*>(b + i.offsets_offset);
     v.coeffs = reinterpret_cast<const float*>(b + i.coeffs_offset);
+    if (i.encoding == Encoding::Q8) {
+      v.details = reinterpret_cast<const std::int8_t*>(b + i.details_offset);
+      v.step = i.quant_step;
+    }
     return v;
   }
 
@@ -694,14 +751,14 @@ class Stream {
     if (tag == 0x04030201u) return fail(Status::UnsupportedEndianness, "the file is big-endian; .lbh is little-endian");
     if (tag != kEndianTag) return fail(Status::BadHeader, "endianness tag is not 0x01020304");
     const std::uint32_t version = rd32(p + 8);
-    if (version != kVersion)
-      return fail(Status::UnsupportedVersion,
-                  "format version " + std::to_string(version) + "; this reader reads version " + std::to_string(kVersion));
+    if (version < kOldestVersion || version > kVersion)
+      return fail(Status::UnsupportedVersion, "format version " + std::to_string(version) + "; this reader reads versions " +
+                                                  std::to_string(kOldestVersion) + ".." + std::to_string(kVersion));
     if (size_ < kHeaderBytes)
       return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes; the header alone has 256");
     if (rd32(p + 16) != kHeaderBytes || rd32(p + 20) != kEntryBytes)
       return fail(Status::BadHeader, "header size " + std::to_string(rd32(p + 16)) + " / entry size " +
-                                         std::to_string(rd32(p + 20)) + "; version 1 has 256 / 128");
+                                         std::to_string(rd32(p + 20)) + "; versions 1 and 2 have 256 / 128");
     Header& h = header_;
     h.version = version;
     h.file_bytes = rd64(p + 24);
@@ -737,7 +794,7 @@ class Stream {
                                                std::to_string(kMaxSolutions));
     const std::uint64_t table_offset = rd64(p + 208);
     if (table_offset != kHeaderBytes)
-      return fail(Status::BadHeader, "table offset " + std::to_string(table_offset) + "; version 1 puts it at 256");
+      return fail(Status::BadHeader, "table offset " + std::to_string(table_offset) + "; the format puts it at 256");
     const std::uint64_t table_end = table_offset + static_cast<std::uint64_t>(h.solution_count) * kEntryBytes;
     if (table_end > h.file_bytes)
       return fail(Status::CountOutOfRange, "solution table of " + std::to_string(h.solution_count) +
@@ -788,11 +845,22 @@ class Stream {
       i.masks_crc = rd32(e + 88);
       i.offsets_crc = rd32(e + 92);
       i.coeffs_crc = rd32(e + 96);
-      if (rd32(e + 100) != 0) return fail(Status::BadHeader, who + ": reserved field at entry offset 100 is not 0");
+      const std::uint32_t encoding = rd32(e + 100);
+      if (encoding > 1 || (encoding != 0 && version < 2))
+        return fail(Status::BadHeader, who + ": coefficient encoding " + std::to_string(encoding) + " at entry offset 100; " +
+                                           (version < 2 ? "version 1 allows only 0" : "allowed: 0 (f32) or 1 (8-bit details)"));
+      i.encoding = static_cast<Encoding>(encoding);
       i.fast_blocks = rd64(e + 104);
       i.max_abs_error = rdf32(e + 112);
       i.rms_error = rdf32(e + 116);
-      if (!all_zero(e + 120, 8)) return fail(Status::BadHeader, who + ": reserved entry bytes 120..127 are not 0");
+      if (i.encoding == Encoding::F32) {
+        if (!all_zero(e + 120, 8)) return fail(Status::BadHeader, who + ": entry bytes 120..127 are not 0 (f32 encoding)");
+      } else {
+        i.quant_step = rdf32(e + 120);
+        i.details_crc = rd32(e + 124);
+        if (!(i.quant_step > 0) || !std::isfinite(i.quant_step * static_cast<float>(kQ8Max)))
+          return fail(Status::BadHeader, who + ": quantisation step must be finite and > 0 (and 127 steps finite)");
+      }
       if (i.block_count != block_count)
         return fail(Status::CountOutOfRange, who + ": block count " + std::to_string(i.block_count) +
                                                  "; the lattice has " + std::to_string(block_count) + " sub-blocks");
@@ -804,12 +872,17 @@ class Stream {
       if (i.fast_blocks > i.block_count)
         return fail(Status::CountOutOfRange, who + ": fast-path block count exceeds the block count");
       // Sections: sizes checked against the remaining file before any multiplication can overflow.
-      const std::uint64_t sizes[3] = {8, 4, 12};
-      const std::uint64_t counts[3] = {i.block_count, i.block_count, i.coeff_count};
-      const std::uint64_t offsets[3] = {i.masks_offset, i.offsets_offset, i.coeffs_offset};
-      const char* names[3] = {"masks", "offsets", "coefficients"};
-      for (int k = 0; k < 3; ++k) {
+      // Q8 has a fourth section, the details, whose offset is not stored: it is canonical.
+      const bool q8 = i.encoding == Encoding::Q8;
+      const int sections = q8 ? 4 : 3;
+      const std::uint64_t sizes[4] = {8, 4, 12, 3};
+      const std::uint64_t counts[4] = {i.block_count, i.block_count, q8 ? i.block_count : i.coeff_count,
+                                       i.coeff_count - i.block_count};
+      std::uint64_t offsets[4] = {i.masks_offset, i.offsets_offset, i.coeffs_offset, 0};
+      const char* names[4] = {"masks", "offsets", q8 ? "averages" : "coefficients", "details"};
+      for (int k = 0; k < sections; ++k) {
         const std::uint64_t start = align_up(pos);
+        if (k == 3) offsets[3] = i.details_offset = start;
         if (offsets[k] != start)
           return fail(Status::BadHeader, who + ": " + names[k] + " section at " + std::to_string(offsets[k]) +
                                              "; the canonical layout puts it at " + std::to_string(start));
@@ -833,8 +906,12 @@ class Stream {
         return fail(Status::ChecksumMismatch, who + ": masks CRC-32 does not match");
       if (kVerifyChecksums && crc32(p + i.offsets_offset, i.block_count * 4) != i.offsets_crc)
         return fail(Status::ChecksumMismatch, who + ": offsets CRC-32 does not match");
-      if (kVerifyChecksums && crc32(p + i.coeffs_offset, i.coeff_count * 12) != i.coeffs_crc)
-        return fail(Status::ChecksumMismatch, who + ": coefficients CRC-32 does not match");
+      const bool q8 = i.encoding == Encoding::Q8;
+      const std::uint64_t stored_f32 = q8 ? i.block_count : i.coeff_count;  // RGB triples of f32
+      if (kVerifyChecksums && crc32(p + i.coeffs_offset, stored_f32 * 12) != i.coeffs_crc)
+        return fail(Status::ChecksumMismatch, who + (q8 ? ": averages" : ": coefficients") + " CRC-32 does not match");
+      if (q8 && kVerifyChecksums && crc32(p + i.details_offset, i.detail_count() * 3) != i.details_crc)
+        return fail(Status::ChecksumMismatch, who + ": details CRC-32 does not match");
       std::uint64_t running = 0, fast = 0;
       for (std::uint64_t b = 0; b < i.block_count; ++b) {
         const std::uint64_t mask = rd64(p + i.masks_offset + 8 * b);
@@ -855,9 +932,14 @@ class Stream {
       if (fast != i.fast_blocks)
         return fail(Status::Inconsistent, who + ": " + std::to_string(fast) + " fast-path blocks; entry says " +
                                               std::to_string(i.fast_blocks));
-      for (std::uint64_t c = 0; c < i.coeff_count * 3; ++c)
+      for (std::uint64_t c = 0; c < stored_f32 * 3; ++c)
         if (!std::isfinite(rdf32(p + i.coeffs_offset + 4 * c)))
-          return fail(Status::Inconsistent, who + ": coefficient " + std::to_string(c / 3) + " is not finite");
+          return fail(Status::Inconsistent, who + (q8 ? ": average " : ": coefficient ") + std::to_string(c / 3) +
+                                                " is not finite");
+      if (q8)
+        for (std::uint64_t c = 0; c < i.detail_count() * 3; ++c)
+          if (p[i.details_offset + c] == 0x80u)
+            return fail(Status::Inconsistent, who + ": detail " + std::to_string(c / 3) + " holds -128; allowed -127..127");
     }
 
     for (int a = 0; a < 3; ++a) {
