@@ -118,6 +118,9 @@ TEST_CASE("Scene output section asks for .lbh streams", "[lbh][scene]") {
   rejects(R"({"lbh": {"treshold": 0.1}})", "treshold");
   rejects(R"({"lbh": "yes"})", "/output");
   rejects(R"({"zip": true})", "zip");
+  rejects(R"({"lbh": {"coefficients": "int4"}})", "/output/lbh/coefficients");
+  CHECK(parse_scene(base + R"(, "output": {"lbh": {"coefficients": "f32"}}})", "s.json").output.lbh.coefficients == "f32");
+  CHECK(b.output.lbh.coefficients == "auto");
 }
 
 TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics", "[lbh][io]") {
@@ -254,6 +257,17 @@ TEST_CASE("compress, decompress and inspect .lbh from the command line", "[lbh][
   CHECK(r["solutions"][1]["grid"] == "B06");
   CHECK(r["ratio"].get<double>() > 1.0);
   CHECK(fs::exists(tmp / "out" / "shrub.lbh"));
+  CHECK(r["solutions"][0]["coefficient_encoding"] == "q8");
+  // --coefficients f32: the same kept coefficients as floats, a version-1 file, larger
+  const CliResult cf = run_cli("compress out/shrub.vdb --threshold 0.02 --relative --grids B00,B06 --coefficients f32 "
+                               "-o f32.lbh --json", tmp.path());
+  REQUIRE(cf.exit_code == 0);
+  const nlohmann::json rf = nlohmann::json::parse(cf.out);
+  CHECK(rf["solutions"][0]["coefficient_encoding"] == "f32");
+  CHECK(rf["solutions"][1]["coefficients"] == r["solutions"][1]["coefficients"]);
+  CHECK(rf["ratio"].get<double>() < r["ratio"].get<double>());
+  CHECK(lbh::detail::rd32(reinterpret_cast<const unsigned char*>(read_binary(tmp / "f32.lbh").data()) + 8) == 1u);
+  CHECK(run_cli("compress out/shrub.vdb --threshold 0.02 --coefficients f16 -o x.lbh", tmp.path()).exit_code == 2);
 
   // errors: invalid input, clear message, exit 2
   CHECK(run_cli("compress out/shrub.vdb -o x.lbh", tmp.path()).exit_code == 2);  // no threshold

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <ctime>
 
+#include <spdlog/spdlog.h>
+
 #include "lblight/compress/lbh_writer.h"
 #include "lblight/core/version.h"
 #include "lblight/io/vdb_io.h"
@@ -139,6 +141,16 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
                                             {lbh.threshold, lbh.relative, *parse_lbh_coefficients(lbh.coefficients)}));
     write_lbh(dir_.path(lbh_name), lframe, encoded);
     model["lbh_file"] = lbh_name;
+    double raw = 0, packed = 0, worst_rms = 0;
+    for (const LbhEncoded& e : encoded) {
+      raw += static_cast<double>(e.stats.float_rgb_bytes);
+      packed += static_cast<double>(e.stats.stream_bytes);
+      worst_rms = std::max(worst_rms, e.stats.max_abs_value > 0 ? e.stats.rms_error / e.stats.max_abs_value : 0.0);
+    }
+    spdlog::info("{}: {} solution(s), {:.2f} MiB float RGB -> {:.2f} MiB ({:.2f}:1, {} coefficients), RMS error "
+                 "<= {:.2f}% of a solution's max",
+                 lbh_name, encoded.size(), raw / 1048576.0, packed / 1048576.0, raw / packed,
+                 encoded.front().encoding == lbh::Encoding::Q8 ? "8-bit" : "f32", 100.0 * worst_rms);
   }
 
   for (std::size_t si = 0; si < pending_.size(); ++si) {
