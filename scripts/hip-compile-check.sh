@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Compiles the GPU backend as HIP (compile only: AMD's gfx90a, no GPU needed), proving the kernel
-# source is written once for CUDA and HIP. Exit 77 (skipped) when hipcc is not installed.
+# Compiles the GPU backend and the .lbh reader's device example as HIP (compile only: AMD's
+# gfx90a, no GPU needed), proving the kernel source is written once for CUDA and HIP. Exit 77
+# (skipped) when hipcc is not installed.
 #   usage: scripts/hip-compile-check.sh [OUT.o]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,3 +12,6 @@ fi
 out="${1:-$(mktemp -d)/cuda_backend_hip.o}"
 hipcc --offload-arch=gfx90a -x hip -std=c++17 -Werror -I. -c backends/cuda/cuda_backend.cu -o "$out"
 echo "HIP compile of backends/cuda/cuda_backend.cu for gfx90a: ok ($out)"
+# The .lbh reader's device functions, through its CUDA/HIP example.
+hipcc --offload-arch=gfx90a -x hip -std=c++17 -Werror -Ireaders/lbh -c readers/lbh/cuda_example.cu -o "${out%.o}_lbh_example.o"
+echo "HIP compile of readers/lbh/cuda_example.cu for gfx90a: ok"

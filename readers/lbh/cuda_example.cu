@@ -2,7 +2,20 @@
 // memory once, the lattice and a relighter passed by value. Compile check:
 //   nvcc -std=c++17 -arch=sm_90 -I readers/lbh -c readers/lbh/cuda_example.cu
 //   hipcc -std=c++17 --offload-arch=gfx90a -I readers/lbh -c -x hip readers/lbh/cuda_example.cu
+#if defined(__HIPCC__)
+#include <hip/hip_runtime.h>
+// The few runtime calls this example makes, under their HIP names.
+#define cudaError_t hipError_t
+#define cudaSuccess hipSuccess
+#define cudaMalloc hipMalloc
+#define cudaMemcpy hipMemcpy
+#define cudaFree hipFree
+#define cudaGetErrorString hipGetErrorString
+#define cudaMemcpyHostToDevice hipMemcpyHostToDevice
+#define cudaMemcpyDeviceToHost hipMemcpyDeviceToHost
+#else
 #include <cuda_runtime.h>
+#endif
 
 #include <cmath>
 #include <cstdio>
@@ -28,6 +41,11 @@ __global__ void sample_kernel(lbh::Lattice lattice, lbh::SolutionView view, cons
   out[i] = make_float3(v.r, v.g, v.b);
 }
 
+static bool ok(cudaError_t e, const char* what) {
+  if (e != cudaSuccess) std::fprintf(stderr, "%s: %s\n", what, cudaGetErrorString(e));
+  return e == cudaSuccess;
+}
+
 // Host side: validate on the host, copy the bytes, rebase the views onto the device copy.
 int main(int argc, char** argv) {
   if (argc < 2) return 2;
@@ -37,11 +55,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   void* dev = nullptr;
-  if (const cudaError_t e = cudaMalloc(&dev, s.size()); e != cudaSuccess) {  // 256-byte aligned
-    std::fprintf(stderr, "no usable CUDA device: %s\n", cudaGetErrorString(e));
-    return 1;
-  }
-  cudaMemcpy(dev, s.data(), s.size(), cudaMemcpyHostToDevice);
+  if (!ok(cudaMalloc(&dev, s.size()), "no usable GPU")) return 1;  // 256-byte aligned
+  if (!ok(cudaMemcpy(dev, s.data(), s.size(), cudaMemcpyHostToDevice), "copying the stream")) return 1;
   const lbh::Lattice L = s.lattice();
   const int n = 1 << 20;
   std::vector<float3> pos(n);
@@ -49,12 +64,13 @@ int main(int argc, char** argv) {
     pos[i] = make_float3(L.index_min[0] + (i % 97) * (L.n[0] - 1) / 96.0f, L.index_min[1] + (i / 97 % 89) * (L.n[1] - 1) / 88.0f,
                          L.index_min[2] + (i % 83) * (L.n[2] - 1) / 82.0f);
   float3 *dpos = nullptr, *dout = nullptr;
-  cudaMalloc(&dpos, n * sizeof(float3));
-  cudaMalloc(&dout, n * sizeof(float3));
-  cudaMemcpy(dpos, pos.data(), n * sizeof(float3), cudaMemcpyHostToDevice);
+  if (!ok(cudaMalloc(&dpos, n * sizeof(float3)), "allocating positions") ||
+      !ok(cudaMalloc(&dout, n * sizeof(float3)), "allocating results") ||
+      !ok(cudaMemcpy(dpos, pos.data(), n * sizeof(float3), cudaMemcpyHostToDevice), "copying positions"))
+    return 1;
   sample_kernel<<<(n + 255) / 256, 256>>>(L, s.view(0, dev), dpos, dout, n);
   std::vector<float3> out(n);
-  cudaMemcpy(out.data(), dout, n * sizeof(float3), cudaMemcpyDeviceToHost);
+  if (!ok(cudaMemcpy(out.data(), dout, n * sizeof(float3), cudaMemcpyDeviceToHost), "sampling")) return 1;
   int bad = 0;
   for (int i = 0; i < n; i += 997) {
     const lbh::Rgb h = s.sample_index(0, pos[i].x, pos[i].y, pos[i].z);
@@ -64,8 +80,6 @@ int main(int argc, char** argv) {
   if (s.make_relighter(0.3, 0.2, -1.0, 1.0f, 0.2f, r, dev) == lbh::Status::Ok)
     relight_kernel<<<(n + 255) / 256, 256>>>(L, r, dpos, dout, n);
   std::printf("%s: device samples %s host samples\n", argv[1], bad ? "DIFFER from" : "match");
-  cudaFree(dev);
-  cudaFree(dpos);
-  cudaFree(dout);
+  for (void* p : {dev, static_cast<void*>(dpos), static_cast<void*>(dout)}) (void)cudaFree(p);
   return bad ? 1 : 0;
 }

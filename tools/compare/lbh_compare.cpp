@@ -100,24 +100,28 @@ void nano_channels(const Solution& s, float tol, std::size_t& bytes, ErrStats& e
   }
 }
 
-LbhEncoded haar(const Solution& s, double t_abs) {
+LbhEncoded haar(const Solution& s, double t_abs, LbhCoefficients coefficients = LbhCoefficients::Auto) {
   LbhSolutionIn in{s.name, -1, {0, 0, 0}, &s.grid.values};
   const LbhFrame f{s.grid.frame.dims, s.grid.frame.index_min, s.grid.frame.index_to_world};
-  return encode_lbh_solution(f, in, {t_abs, false}, 0);
+  return encode_lbh_solution(f, in, {t_abs, false, coefficients}, 0);
 }
 
-// Largest absolute Haar threshold whose max node error stays <= target (bisection on a log scale).
+// The smallest stream whose max node error stays <= target: per coefficient encoding, the largest
+// absolute threshold that meets it (bisection on a log scale); 8-bit details cannot go below
+// their quantisation error, so tight targets end with f32.
 LbhEncoded haar_at_max_error(const Solution& s, double target) {
-  LbhEncoded best = haar(s, 0.0);
-  double lo = 0, hi = 4 * target;
-  for (int it = 0; it < 14; ++it) {
-    const double mid = lo == 0 ? hi / 2 : std::sqrt(lo * hi);
-    LbhEncoded e = haar(s, mid);
-    if (e.stats.max_abs_error <= target) {
-      lo = mid;
-      if (e.stats.stream_bytes <= best.stats.stream_bytes) best = std::move(e);
-    } else {
-      hi = mid;
+  LbhEncoded best = haar(s, 0.0, LbhCoefficients::F32);
+  for (const LbhCoefficients c : {LbhCoefficients::F32, LbhCoefficients::Q8}) {
+    double lo = 0, hi = 4 * target;
+    for (int it = 0; it < 14; ++it) {
+      const double mid = lo == 0 ? hi / 2 : std::sqrt(lo * hi);
+      LbhEncoded e = haar(s, mid, c);
+      if (e.stats.max_abs_error <= target) {
+        lo = mid;
+        if (e.stats.stream_bytes <= best.stats.stream_bytes) best = std::move(e);
+      } else {
+        hi = mid;
+      }
     }
   }
   return best;
@@ -368,14 +372,17 @@ int main(int argc, char** argv) {
   auto haar_at = [&](const char* name, const std::vector<double>& target) {
     double bytes = 0;
     ErrStats all;
+    std::size_t q8 = 0;
     for (std::size_t i = 0; i < sols.size(); ++i) {
       const LbhEncoded e = haar_at_max_error(sols[i], target[i]);
+      q8 += e.encoding == lbh::Encoding::Q8;
       bytes += static_cast<double>(e.stats.stream_bytes);
       all.max = std::max(all.max, e.stats.max_abs_error);
       all.sum_sq += e.stats.rms_error * e.stats.rms_error * 3.0 * static_cast<double>(e.stats.nodes);
       all.n += 3 * e.stats.nodes;
     }
-    row(name, bytes, all.max, all.rms(), all.max / max_value);
+    const std::string label = std::string(name) + " (" + std::to_string(q8) + "/" + std::to_string(sols.size()) + " q8)";
+    row(label.c_str(), bytes, all.max, all.rms(), all.max / max_value);
   };
   haar_at("lbh Haar at Fp4's max error", fp4_max);
   haar_at("lbh Haar at Fp8's max error", fp8_max);
