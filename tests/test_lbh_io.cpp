@@ -10,6 +10,7 @@
 
 #include "backends/openmp/openmp_backend.h"
 #include "lblight/compress/lbh_writer.h"
+#include "lblight/compress/vdb_compress.h"
 #include "lblight/io/bake_output.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/solve/bake.h"
@@ -370,3 +371,25 @@ TEST_CASE("An independent decoder written from the format document agrees with t
                         .c_str()) != 0);
 }
 #endif
+
+TEST_CASE("compress: grids named B00..B18 without lblight metadata are those base solutions", "[lbh][io]") {
+  TempDir tmp;
+  const Dims d{5, 4, 6};
+  std::array<std::vector<float>, 3> rgb;
+  for (auto& c : rgb) c.assign(d.count(), 0.5f);
+  rgb[1][7] = 2.0f;
+  DenseFrame frame{d, {0, 0, 0}, {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}};
+  write_vdb(tmp / "foreign.vdb", frame, {{"B07", nullptr, &rgb}, {"B19", nullptr, &rgb}, {"light", nullptr, &rgb}}, {});
+  const LbhFileContents c = compress_vdb(tmp / "foreign.vdb", {0.01, true});
+  REQUIRE(c.solutions.size() == 3);
+  for (const LbhEncoded& e : c.solutions) {
+    INFO(e.name);
+    if (e.name == "B07") {
+      CHECK(e.index == 7);
+      CHECK(e.direction == std::array<int, 3>{lbh::lattice_cx(7), lbh::lattice_cy(7), lbh::lattice_cz(7)});
+    } else {
+      CHECK(e.index == -1);  // B19 is no base solution; light is a static bake
+      CHECK(e.direction == std::array<int, 3>{0, 0, 0});
+    }
+  }
+}

@@ -1,6 +1,7 @@
 #include "lblight/compress/vdb_compress.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <random>
 
@@ -48,10 +49,15 @@ LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSetting
     in.rgb = &g.values;
     if (g.metadata.contains("lblight_solution") && g.metadata["lblight_solution"].is_number_integer())
       in.index = g.metadata["lblight_solution"].get<int>();
+    else if (names[i].size() == 3 && names[i][0] == 'B' && std::isdigit(static_cast<unsigned char>(names[i][1])) &&
+             std::isdigit(static_cast<unsigned char>(names[i][2])))
+      in.index = std::stoi(names[i].substr(1));  // a base-solution grid written by another tool: Bnn is index nn
     if (in.index < -1 || in.index > 18) in.index = -1;
     if (g.metadata.contains("lblight_direction") && g.metadata["lblight_direction"].is_array() &&
         g.metadata["lblight_direction"].size() == 3)
       for (int a = 0; a < 3; ++a) in.direction[a] = std::clamp(g.metadata["lblight_direction"][a].get<int>(), -1, 1);
+    else if (in.index >= 0)
+      in.direction = {lbh::lattice_cx(in.index), lbh::lattice_cy(in.index), lbh::lattice_cz(in.index)};
     out.solutions.push_back(encode_lbh_solution(frame, in, threshold, threads));
   }
   return out;
