@@ -85,7 +85,7 @@ class Stream:
             if encoding not in (0, 1) or (encoding == 1 and version < 2):
                 raise LbhError("solution %d: bad coefficient encoding %d" % (s, encoding))
             q8 = encoding == 1
-            if q8 and not (step > 0 and math.isfinite(step)):
+            if q8 and not (step > 0 and math.isfinite(step) and 127.0 * step <= 3.4028234663852886e38):
                 raise LbhError("solution %d: bad quantisation step" % s)
             if not q8 and (step != 0 or dcrc != 0):
                 raise LbhError("solution %d: bytes 120..127 must be 0 for f32" % s)
@@ -112,6 +112,10 @@ class Stream:
             offsets = struct.unpack_from("<%dI" % bc, d, oo)
             coeffs = struct.unpack_from("<%df" % (3 * (bc if q8 else cc)), d, co)
             details = struct.unpack_from("<%db" % (3 * (cc - bc)), d, starts[3]) if q8 else None
+            if not all(math.isfinite(c) for c in coeffs):
+                raise LbhError("solution %d: non-finite coefficient" % s)
+            if q8 and -128 in details:
+                raise LbhError("solution %d: detail -128" % s)
             running = 0
             for b in range(bc):
                 if not masks[b] & 1 or offsets[b] != running:

@@ -10,6 +10,7 @@
 
 #include "lblight/compress/haar.h"
 #include "lblight/compress/lbh_writer.h"
+#include "lblight/core/error.h"
 #include "lblight/lattice/sun.h"
 #include "readers/lbh/lbh_reader.h"
 
@@ -187,14 +188,17 @@ TEST_CASE("The max error never exceeds the bound the threshold implies", "[haar]
     const bool q8 = coeffs == LbhCoefficients::Q8;
     INFO((q8 ? "q8" : "f32") << ", relative threshold " << rel << ", t = " << t << ", step " << e.sols[0].step);
     CHECK(t == Approx(rel * st.max_abs_value));
-    CHECK((e.sols[0].encoding == lbh::Encoding::Q8) == q8);
+    CHECK((e.sols[0].encoding == lbh::Encoding::Q8) == q8);  // (make_field is non-negative)
     const double eps = 2e-6 * st.max_abs_value;  // float rounding of the filters
     // Per coefficient on a value's path: a dropped one is off by < t, a quantised one by <= step / 2
     // (0 for f32); the step is t / 2 unless the largest kept detail needs 127 coarser steps.
     double per_coeff = t;
-    if (q8) {
+    if (q8 && e.sols[0].details.empty()) {
+      CHECK(e.sols[0].step == 1.0f);  // nothing to quantise
+    } else if (q8) {
       CHECK(e.sols[0].step >= 0.5 * t * (1 - 1e-6));
-      if (rel >= 0.01) CHECK(e.sols[0].step <= 0.5 * t * (1 + 1e-6));  // details here are < 63.5 t
+      // make_field is non-negative, so details are <= M / 2 <= 63.5 t from 1/127 relative on
+      if (rel >= 1.0 / 127) CHECK(e.sols[0].step <= 0.5 * t * (1 + 1e-6));
       per_coeff = std::max(t, 0.5 * e.sols[0].step * (1 + 1e-6));
     }
     // measured over every stored value (forward borders included) <= sum of coefficient errors on
@@ -616,5 +620,56 @@ TEST_CASE("Random garbage never opens and never crashes the reader", "[reader]")
     lbh::Stream s;
     if (b == e.bytes) continue;
     CHECK(s.open_memory(b.data(), b.size()) != lbh::Status::Ok);
+  }
+}
+
+TEST_CASE("8-bit details: step edge cases give files the reader accepts", "[haar]") {
+  const Dims d{7, 5, 6};
+  const LbhFrame f = frame_of(d);
+  auto encode_field = [&](const std::array<std::vector<float>, 3>& field, LbhSettings settings) {
+    LbhEncoded e = encode_lbh_solution(f, {"B01", 1, {1, 0, 0}, &field}, settings, 2);
+    lbh::Stream s = open_ok(serialize_lbh(f, {e}));
+    CHECK(s.info(0).encoding == e.encoding);
+    return e;
+  };
+  auto constant = [&](float v) {
+    std::array<std::vector<float>, 3> field;
+    for (auto& c : field) c.assign(d.count(), v);
+    return field;
+  };
+  // no kept details (constant and all-zero fields): step 1, every block on the fast path
+  for (const float v : {0.0f, 0.75f}) {
+    const LbhEncoded e = encode_field(constant(v), {0.01, true, LbhCoefficients::Q8});
+    CHECK(e.step == 1.0f);
+    CHECK(e.details.empty());
+    CHECK(e.stats.fast_blocks == e.stats.blocks);
+    CHECK(e.stats.max_abs_error == 0.0);
+  }
+  // an absolute threshold so large that half of it times 127 would overflow a float
+  const LbhEncoded big = encode_field(constant(3.0f), {1e37, false});
+  CHECK(std::isfinite(127.0f * big.step));
+  // a threshold below the smallest float's half, on denormal details: returns, step > 0
+  std::array<std::vector<float>, 3> tiny = constant(0.0f);
+  for (std::size_t i = 0; i < d.count(); i += 3) tiny[1][i] = 1e-40f;
+  const LbhEncoded t = encode_field(tiny, {1e-45, false, LbhCoefficients::Q8});
+  CHECK(t.step > 0.0f);
+  CHECK(t.stats.max_abs_error <= t.stats.error_bound * (1 + 1e-6) + 1e-45);
+  // signed data: the largest detail sets a step above t / 2; the bound still holds
+  std::array<std::vector<float>, 3> sign = constant(0.0f);
+  for (std::size_t i = 0; i < d.count(); ++i)
+    for (auto& c : sign) c[i] = (i % 2) ? 1.0f : -1.0f;
+  const LbhEncoded sg = encode_field(sign, {0.01, true});
+  CHECK(sg.step > 0.5f * sg.threshold);
+  CHECK(sg.stats.max_abs_error <= sg.stats.error_bound * (1 + 1e-6) + 1e-6);
+  CHECK(sg.stats.error_bound < haar::kMaxDetailsPerValue * std::max<double>(sg.threshold, 0.5 * sg.step * (1 + 1e-6)));
+  // values whose pair sums overflow the filters: a clear input error, not a file readers reject
+  try {
+    encode_lbh_solution(f, {"B01", 1, {1, 0, 0}, &sign}, {0.01, true}, 2);
+    const auto huge = constant(3e38f);
+    encode_lbh_solution(f, {"B01", 1, {1, 0, 0}, &huge}, {0.01, true}, 2);
+    FAIL("accepted values of 3e38");
+  } catch (const Error& e) {
+    CHECK(e.category() == ErrorCategory::InvalidInput);
+    CHECK(std::string(e.what()).find("too large") != std::string::npos);
   }
 }

@@ -167,6 +167,7 @@ TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics
     // 8-bit details by default (threshold > 0): 12 bytes of mask and offset plus a 12-byte average
     // per block, 3 bytes per kept detail
     CHECK(c["coefficient_encoding"] == "q8");
+    // non-negative totals at 1% relative: the step is half the threshold (docs/lbh-format.md sec. 3.4)
     CHECK(c["quant_step"].get<double>() <= 0.5 * c["threshold"].get<double>() * (1 + 1e-6));
     const std::uint64_t blocks = c["blocks"], kept = c["coefficients"];
     CHECK(c["compressed_bytes"] == 24 * blocks + 3 * (kept - blocks));

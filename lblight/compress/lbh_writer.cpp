@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <thread>
 
 #include "lblight/compress/haar.h"
@@ -19,14 +20,20 @@ struct SlabStats {
   double sum_sq = 0, max_err = 0, max_err_block = 0, bound = 0;
   std::uint64_t fast = 0;
   float max_detail = 0;  // largest |kept detail coefficient| over channels (pass 1)
+  bool finite = true;    // every coefficient finite (|values| near FLT_MAX overflow the filters)
 };
 
-// The Q8 step: at most half the threshold, and coarse enough that the largest kept detail fits
-// in -127..127 (docs/lbh-format.md sec. 3.4). Never 0 (a solution without details gets 1).
+// The Q8 step (docs/lbh-format.md sec. 3.4): half the threshold, or coarser when the largest kept
+// detail needs it to fit -127..127; kept between the smallest positive float and the largest one
+// whose 127 multiples stay finite (what readers check). A solution without kept details gets 1.
 float q8_step(float threshold, float max_detail) {
+  if (!(max_detail > 0)) return 1.0f;
+  constexpr float kLargest = std::numeric_limits<float>::max() / 128.0f;  // 127 x step finite
   const double wanted = std::max(0.5 * threshold, static_cast<double>(max_detail) / lbh::kQ8Max);
-  float step = wanted > 0 ? static_cast<float>(wanted) : 1.0f;
-  while (std::nearbyint(static_cast<double>(max_detail) / step) > lbh::kQ8Max) step = std::nextafter(step, 2 * step);
+  float step = static_cast<float>(std::min(wanted, static_cast<double>(kLargest)));
+  step = std::max(step, std::numeric_limits<float>::denorm_min());
+  while (step < kLargest && std::nearbyint(static_cast<double>(max_detail) / step) > lbh::kQ8Max)
+    step = std::nextafter(step, std::numeric_limits<float>::infinity());
   return step;
 }
 
@@ -140,11 +147,18 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
         haar::forward(blk);
         const std::uint64_t mask = haar::keep_mask(blk, out.threshold);
         out.masks[bz * slab + static_cast<std::size_t>(by) * nb[0] + bx] = mask;
+        for (const auto& ch : blk)
+          for (float c : ch) stats[static_cast<std::size_t>(bz)].finite &= std::isfinite(c);
         float& dmax = stats[static_cast<std::size_t>(bz)].max_detail;
         for (std::uint64_t m = mask & ~std::uint64_t{1}; m; m &= m - 1)
           for (int c = 0; c < 3; ++c) dmax = std::max(dmax, std::fabs(blk[c][lbh::lowest_bit(m)]));
       }
   });
+  for (const SlabStats& st : stats)
+    if (!st.finite)
+      throw_invalid("solution " + in.name + " holds values too large for the Haar filters (sums of two values "
+                    "overflow a float); allowed: |value| <= 1.7e38",
+                    where);
   if (q8) {
     float dmax = 0;
     for (const SlabStats& st : stats) dmax = std::max(dmax, st.max_detail);

@@ -18,9 +18,10 @@
 namespace lblight {
 
 // How kept coefficients are stored (docs/lbh-format.md sec. 2.3): F32 as 001 does; Q8 keeps each
-// block's average in f32 and stores details as 8-bit multiples of a per-solution step of at most
-// half the threshold (so quantising a kept detail costs at most a quarter of what dropping one
-// may); Auto is Q8 when the applied threshold is > 0 and F32 (lossless) when it is 0.
+// block's average in f32 and stores details as 8-bit multiples of a per-solution step of half
+// the threshold, coarser only when the largest kept detail exceeds 63.5 steps (not for
+// non-negative totals at relative thresholds >= 1%), so quantising a kept detail usually costs a
+// quarter of what dropping one may; Auto is Q8 when the applied threshold is > 0, else F32.
 enum class LbhCoefficients { Auto, F32, Q8 };
 
 // What to compress with: the threshold, absolute or relative to the solution's largest |value|

@@ -142,7 +142,9 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     write_lbh(dir_.path(lbh_name), lframe, encoded);
     model["lbh_file"] = lbh_name;
     double raw = 0, packed = 0, worst_rms = 0;
+    std::size_t q8 = 0;
     for (const LbhEncoded& e : encoded) {
+      q8 += e.encoding == lbh::Encoding::Q8;
       raw += static_cast<double>(e.stats.float_rgb_bytes);
       packed += static_cast<double>(e.stats.stream_bytes);
       worst_rms = std::max(worst_rms, e.stats.max_abs_value > 0 ? e.stats.rms_error / e.stats.max_abs_value : 0.0);
@@ -150,7 +152,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     spdlog::info("{}: {} solution(s), {:.2f} MiB float RGB -> {:.2f} MiB ({:.2f}:1, {} coefficients), RMS error "
                  "<= {:.2f}% of a solution's max",
                  lbh_name, encoded.size(), raw / 1048576.0, packed / 1048576.0, raw / packed,
-                 encoded.front().encoding == lbh::Encoding::Q8 ? "8-bit" : "f32", 100.0 * worst_rms);
+                 q8 == encoded.size() ? "8-bit" : q8 == 0 ? "f32" : "8-bit and f32", 100.0 * worst_rms);
   }
 
   for (std::size_t si = 0; si < pending_.size(); ++si) {

@@ -170,7 +170,6 @@ LBH_HOSTDEV inline std::uint64_t block_index(const Lattice& L, int bx, int by, i
          static_cast<std::uint64_t>(bx);
 }
 
-// Decodes sub-block b into its 64 RGB values (value (x, y, z) at x + 4y + 16z).
 // Where block b's average lies in s.coeffs.
 LBH_HOSTDEV inline const float* block_average(const SolutionView& s, std::uint64_t b) {
   return s.coeffs + 3ull * (s.details ? b : static_cast<std::uint64_t>(s.offsets[b]));
@@ -181,6 +180,7 @@ LBH_HOSTDEV inline const std::int8_t* block_details(const SolutionView& s, std::
   return s.details + 3ull * (static_cast<std::uint64_t>(s.offsets[b]) - b);
 }
 
+// Decodes sub-block b into its 64 RGB values (value (x, y, z) at x + 4y + 16z).
 LBH_HOSTDEV inline void decode_block(const SolutionView& s, std::uint64_t b, Rgb* out) {
   const std::uint64_t mask = s.masks[b];
   const float* avg = block_average(s, b);
