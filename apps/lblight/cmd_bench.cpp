@@ -12,6 +12,7 @@
 #include "apps/lblight/commands.h"
 #include "lblight/backend/registry.h"
 #include "lblight/core/error.h"
+#include "lblight/core/relative_gap.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/scene/procedural.h"
 #include "lblight/solve/plan.h"
@@ -190,15 +191,8 @@ int run_bench(const BenchArgs& a) {
         const int steps = 2 * size;
         if (ref.empty()) ref = bench_totals(*backend, bench_lattice(a.shape, size), Precision::Float32, steps);
         const std::vector<float> got = bench_totals(*backend, bench_lattice(a.shape, size), precision, steps);
-        double e2 = 0, t2 = 0, emax = 0, tmax = 0;
-        for (std::size_t i = 0; i < ref.size(); ++i) {
-          const double d = static_cast<double>(got[i]) - ref[i];
-          e2 += d * d;
-          t2 += static_cast<double>(ref[i]) * ref[i];
-          emax = std::max(emax, std::fabs(d));
-          tmax = std::max(tmax, static_cast<double>(std::fabs(ref[i])));
-        }
-        const double l2 = t2 > 0 ? std::sqrt(e2 / t2) : 0.0, mx = tmax > 0 ? emax / tmax : 0.0;
+        const RelativeGap gap = relative_gap(got, ref);
+        const double l2 = gap.l2, mx = gap.max;
         char el2[32], emx[32];
         std::snprintf(el2, sizeof el2, "%.2e", l2);
         std::snprintf(emx, sizeof emx, "%.2e", mx);
