@@ -8,12 +8,10 @@
 #include <cstdlib>
 #include <fstream>
 
-#include "backends/openmp/openmp_backend.h"
 #include "lblight/compress/lbh_writer.h"
 #include "lblight/compress/vdb_compress.h"
 #include "lblight/io/bake_output.h"
 #include "lblight/io/vdb_io.h"
-#include "lblight/solve/bake.h"
 #include "readers/lbh/lbh_reader.h"
 #include "tests/test_support.h"
 
@@ -31,19 +29,6 @@ const char* kLbhScene = R"({
   "solver": {"iterations": 16},
   "output": {"lbh": {"threshold": 0.01, "relative": true}}
 })";
-
-class Collect final : public BakeObserver {
- public:
-  explicit Collect(BakeOutput& out) : out_(out) {}
-  void solution_done(const ModelPlan& mp, SolutionResult& r) override {
-    kept.push_back(r);
-    out_.add(mp, r);
-  }
-  std::vector<SolutionResult> kept;
-
- private:
-  BakeOutput& out_;
-};
 
 std::string read_binary(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -120,21 +105,15 @@ TEST_CASE("Scene output section asks for .lbh streams", "[lbh][scene]") {
   rejects(R"({"lbh": "yes"})", "/output");
   rejects(R"({"zip": true})", "zip");
   rejects(R"({"lbh": {"coefficients": "int4"}})", "/output/lbh/coefficients");
-  CHECK(parse_scene(base + R"(, "output": {"lbh": {"coefficients": "f32"}}})", "s.json").output.lbh.coefficients == "f32");
-  CHECK(b.output.lbh.coefficients == "auto");
+  CHECK(parse_scene(base + R"(, "output": {"lbh": {"coefficients": "f32"}}})", "s.json").output.lbh.coefficients == LbhCoefficients::F32);
+  CHECK(b.output.lbh.coefficients == LbhCoefficients::Auto);
 }
 
 TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics", "[lbh][io]") {
   TempDir tmp;
   const Scene scene = parse_scene(kLbhScene, tmp / "scene.json");
-  const BakePlan plan = make_plan(scene);
-  const ModelPlan& mp = plan.models.at(0);
-  auto backend = make_openmp_backend(0);
-  BakeOutput out(plan, tmp / "out", {"test", "cpu", backend->description(), Precision::Float32});
-  Collect collect(out);
-  bake_model(mp, *backend, {}, collect);
-  out.finish_model(mp);
-  out.commit(1.0);
+  const BakedModel baked = bake_first_model(scene, tmp / "out");
+  const ModelPlan& mp = baked.model();
 
   REQUIRE(fs::exists(tmp / "out" / "shrub.vdb"));
   REQUIRE(fs::exists(tmp / "out" / "shrub.lbh"));
@@ -146,8 +125,8 @@ TEST_CASE("Bake writes <model>.lbh next to the .vdb with per-solution statistics
   CHECK(s.header().dims[0] == mp.lattice.dims.nx);
   CHECK(s.header().index_min[2] == mp.lattice_index_min[2]);
   for (int e = 0; e < 16; ++e) CHECK(s.header().index_to_world[e] == mp.grid.index_to_world[e]);
-  for (std::size_t k = 0; k < collect.kept.size(); ++k) {
-    const SolutionResult& r = collect.kept[k];
+  for (std::size_t k = 0; k < baked.kept.size(); ++k) {
+    const SolutionResult& r = baked.kept[k];
     const nlohmann::json& c = m["models"][0]["solutions"][k]["compression"];
     INFO(r.plan.grid_name);
     CHECK(c["file"] == "shrub.lbh");

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "backends/openmp/openmp_backend.h"
+#include "lblight/io/bake_output.h"
 #include "lblight/lattice/d3q19.h"
 
 namespace lblight::test {
@@ -157,6 +158,31 @@ SystemSpec system_for(int channel, const std::array<double, 19>& boundary) {
 }
 
 std::unique_ptr<Backend> cpu_backend(int threads) { return make_openmp_backend(threads); }
+
+BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir) {
+  // Copies each result before the output takes its totals.
+  class Keep final : public BakeObserver {
+   public:
+    Keep(BakeOutput& out, std::vector<SolutionResult>& kept) : out_(out), kept_(kept) {}
+    void solution_done(const ModelPlan& mp, SolutionResult& r) override {
+      kept_.push_back(r);
+      out_.add(mp, r);
+    }
+
+   private:
+    BakeOutput& out_;
+    std::vector<SolutionResult>& kept_;
+  };
+  BakedModel b{make_plan(scene), {}};
+  const ModelPlan& mp = b.model();
+  auto backend = make_openmp_backend(0);
+  BakeOutput out(b.plan, out_dir, {"test", "cpu", backend->description(), Precision::Float32});
+  Keep keep(out, b.kept);
+  bake_model(mp, *backend, {}, keep);
+  out.finish_model(mp);
+  out.commit(1.0);
+  return b;
+}
 
 std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
                                 const SystemSpec& sys, int steps, Precision p) {

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/solve/bake.h"
+#include "lblight/solve/plan.h"
 #include "lblight/lattice/omega.h"
 
 namespace lblight::test {
@@ -93,5 +95,15 @@ void write_text(const std::filesystem::path& file, const std::string& text);
 std::string read_text(const std::filesystem::path& file);
 
 double max_relative_difference(const std::vector<double>& a, const std::vector<float>& b, double floor = 1e-30);
+
+// Bakes the first model of `scene` on the OpenMP backend through a full BakeOutput into `out_dir`
+// (grids, .lbh when asked, manifest), keeping each solution's result as it was before the
+// output took its totals.
+struct BakedModel {
+  BakePlan plan;
+  std::vector<SolutionResult> kept;
+  const ModelPlan& model() const { return plan.models.at(0); }
+};
+BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir);
 
 }  // namespace lblight::test

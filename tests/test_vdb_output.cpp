@@ -4,29 +4,12 @@
 #include <cmath>
 #include <map>
 
-#include "backends/openmp/openmp_backend.h"
 #include "lblight/io/bake_output.h"
 #include "lblight/io/vdb_io.h"
-#include "lblight/solve/bake.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
-
-namespace {
-class Collect final : public BakeObserver {
- public:
-  explicit Collect(BakeOutput& out) : out_(out) {}
-  void solution_done(const ModelPlan& mp, SolutionResult& r) override {
-    kept.push_back(r);  // copy before the output takes the totals
-    out_.add(mp, r);
-  }
-  std::vector<SolutionResult> kept;
-
- private:
-  BakeOutput& out_;
-};
-}  // namespace
 
 TEST_CASE("Output .vdb holds density, brown and B grids with transform and metadata", "[io]") {
   TempDir tmp;
@@ -36,14 +19,8 @@ TEST_CASE("Output .vdb holds density, brown and B grids with transform and metad
       "lighting": {"mode": "base", "solutions": "0,1,6"},
       "solver": {"iterations": 12}})",
                                   tmp / "scene.json");
-  const BakePlan plan = make_plan(scene);
-  const ModelPlan& mp = plan.models.at(0);
-  auto backend = make_openmp_backend(0);
-  BakeOutput out(plan, tmp / "out", {"test", "cpu", backend->description(), Precision::Float32});
-  Collect collect(out);
-  bake_model(mp, *backend, {}, collect);
-  out.finish_model(mp);
-  out.commit(1.0);
+  const BakedModel baked = bake_first_model(scene, tmp / "out");
+  const ModelPlan& mp = baked.model();
 
   const auto file = tmp / "out" / "shrub.vdb";
   REQUIRE(std::filesystem::exists(file));
@@ -60,7 +37,7 @@ TEST_CASE("Output .vdb holds density, brown and B grids with transform and metad
   CHECK(grids["B01"]["type"] == "vec3s");
   CHECK(grids["density"]["voxel_size"][0].get<double>() == Approx(2.8 / 14));
 
-  for (const SolutionResult& r : collect.kept) {
+  for (const SolutionResult& r : baked.kept) {
     const DenseGridIn g = read_vdb_grid_dense(file, r.plan.grid_name);
     CHECK(g.frame.dims == mp.lattice.dims);
     CHECK(g.frame.index_min == mp.lattice_index_min);

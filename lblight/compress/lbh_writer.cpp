@@ -366,20 +366,4 @@ nlohmann::json lbh_stats_json(const LbhEncoded& e, const std::string& file_name)
   return j;
 }
 
-std::optional<LbhCoefficients> parse_lbh_coefficients(const std::string& name) {
-  if (name == "auto") return LbhCoefficients::Auto;
-  if (name == "f32") return LbhCoefficients::F32;
-  if (name == "q8") return LbhCoefficients::Q8;
-  return std::nullopt;
-}
-
-const char* lbh_coefficients_name(LbhCoefficients c) {
-  switch (c) {
-    case LbhCoefficients::Auto: return "auto";
-    case LbhCoefficients::F32: return "f32";
-    case LbhCoefficients::Q8: return "q8";
-  }
-  return "?";
-}
-
 }  // namespace lblight

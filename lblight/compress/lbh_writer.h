@@ -6,35 +6,17 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
-#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "lblight/compress/lbh_settings.h"
 #include "lblight/lattice/lattice.h"
 #include "readers/lbh/lbh_reader.h"
 
 namespace lblight {
 
-// How kept coefficients are stored (docs/lbh-format.md sec. 2.3): F32 as 001 does; Q8 keeps each
-// block's average in f32 and stores details as 8-bit multiples of a per-solution step of half
-// the threshold, coarser only when the largest kept detail exceeds 63.5 steps (not for
-// non-negative totals at relative thresholds >= 1%), so quantising a kept detail usually costs a
-// quarter of what dropping one may; Auto is Q8 when the applied threshold is > 0, else F32.
-enum class LbhCoefficients { Auto, F32, Q8 };
-
-// What to compress with: the threshold, absolute or relative to the solution's largest |value|
-// over all nodes and channels, and the coefficient storage.
-struct LbhSettings {
-  double value = 0.0;  // the threshold
-  bool relative = false;
-  LbhCoefficients coefficients = LbhCoefficients::Auto;
-};
-
-// "auto", "f32", "q8" (what scenes and the command line accept), or nullopt.
-std::optional<LbhCoefficients> parse_lbh_coefficients(const std::string& name);
-const char* lbh_coefficients_name(LbhCoefficients c);
 
 // The lattice every solution of one file shares: node (i, j, k) sits at index coordinate
 // index_min + (i, j, k); index_to_world is row-major and acts on (i, j, k, 1).

@@ -138,7 +138,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     const LbhFrame lframe{frame.dims, frame.index_min, frame.index_to_world};
     for (const SolutionResult& r : pending_)
       encoded.push_back(encode_lbh_solution(lframe, {r.plan.grid_name, r.plan.index, r.plan.direction, &r.totals},
-                                            {lbh.threshold, lbh.relative, *parse_lbh_coefficients(lbh.coefficients)}));
+                                            {lbh.threshold, lbh.relative, lbh.coefficients}));
     write_lbh(dir_.path(lbh_name), lframe, encoded);
     model["lbh_file"] = lbh_name;
     double raw = 0, packed = 0, worst_rms = 0;

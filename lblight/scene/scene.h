@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/compress/lbh_settings.h"
 #include "lblight/core/error.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/lattice/sun_coverage.h"
@@ -96,7 +97,7 @@ struct LbhOutputSpec {
   bool enabled = false;
   double threshold = 0.01;  // >= 0; relative: fraction of each solution's largest |value| (<= 1)
   bool relative = true;
-  std::string coefficients = "auto";  // "auto" (8-bit details when threshold > 0), "f32" or "q8"
+  LbhCoefficients coefficients = LbhCoefficients::Auto;  // 8-bit details when the threshold is > 0
 };
 
 struct OutputSpec {

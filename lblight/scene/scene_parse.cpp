@@ -393,11 +393,11 @@ OutputSpec read_output(const JsonReader& r) {
                                        : lbh.number_or("threshold", 0.01, 0.0, 1e30, "threshold >= 0");
   if (lbh.has("coefficients")) {
     const JsonReader c = lbh.child("coefficients");
-    const std::string name = c.json().is_string() ? c.json().get<std::string>() : std::string();
-    if (name != "auto" && name != "f32" && name != "q8")
+    const auto parsed = parse_lbh_coefficients(c.json().is_string() ? c.json().get<std::string>() : std::string());
+    if (!parsed)
       c.fail("coefficient storage " + c.json().dump() + " is not allowed; allowed: \"auto\" (8-bit details when "
              "the threshold is > 0), \"f32\" (every kept coefficient as float), \"q8\" (8-bit details)");
-    out.lbh.coefficients = name;
+    out.lbh.coefficients = *parsed;
   }
   return out;
 }
