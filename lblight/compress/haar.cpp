@@ -37,15 +37,18 @@ std::uint64_t keep_mask(const Block& c, float t) {
   return mask;
 }
 
-float dropped_path_bound(const Block& c, std::uint64_t mask) {
-  // |dropped| per coefficient, max over channels.
-  float drop[64];
+void dropped_errors(const Block& c, std::uint64_t mask, float* drop) {
   for (int l = 0; l < 64; ++l) {
     float m = 0.0f;
     if (!(mask >> l & 1u))
       for (int k = 0; k < 3; ++k) m = std::max(m, std::fabs(c[k][l]));
     drop[l] = m;
   }
+}
+
+float dropped_path_bound(const Block& c, std::uint64_t mask) {
+  float drop[64];
+  dropped_errors(c, mask, drop);
   return path_error_bound(drop);
 }
 

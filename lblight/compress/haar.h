@@ -45,6 +45,10 @@ float dropped_path_bound(const Block& coeffs, std::uint64_t mask);
 // 27 coefficients on the path of one of the 64 values.
 float path_error_bound(const float* error64);
 
+// What dropping costs per coefficient: |c| (max over channels) where the mask drops it, 0 where it
+// keeps it. Encoders add what storing a kept one costs.
+void dropped_errors(const Block& coeffs, std::uint64_t mask, float* error64);
+
 inline constexpr int kMaxDetailsPerValue = 26;
 
 }  // namespace lblight::haar

@@ -191,11 +191,7 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
         const std::uint64_t mask = out.masks[b];
         // Error per coefficient (max over channels): |c| when dropped, |c - decoded c| when kept.
         float err[64];
-        for (int l = 0; l < 64; ++l) {
-          err[l] = 0.0f;
-          if (!(mask >> l & 1u))
-            for (int c = 0; c < 3; ++c) err[l] = std::max(err[l], std::fabs(blk[c][l]));
-        }
+        haar::dropped_errors(blk, mask, err);
         if (q8) {
           float* avg = out.coeffs.data() + 3 * b;
           std::int8_t* q = out.details.data() + 3ull * (out.offsets[b] - b);
