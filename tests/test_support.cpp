@@ -159,7 +159,7 @@ SystemSpec system_for(int channel, const std::array<double, 19>& boundary) {
 
 std::unique_ptr<Backend> cpu_backend(int threads) { return make_openmp_backend(threads); }
 
-BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir) {
+BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir, bool write_in_background) {
   // Copies each result before the output takes its totals.
   class Keep final : public BakeObserver {
    public:
@@ -176,7 +176,7 @@ BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out
   BakedModel b{make_plan(scene), {}};
   const ModelPlan& mp = b.model();
   auto backend = make_openmp_backend(0);
-  BakeOutput out(b.plan, out_dir, {"test", "cpu", backend->description(), Precision::Float32});
+  BakeOutput out(b.plan, out_dir, {"test", "cpu", backend->description(), Precision::Float32}, write_in_background);
   Keep keep(out, b.kept);
   bake_model(mp, *backend, {}, keep);
   out.finish_model(mp);

@@ -104,6 +104,7 @@ struct BakedModel {
   std::vector<SolutionResult> kept;
   const ModelPlan& model() const { return plan.models.at(0); }
 };
-BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir);
+BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir,
+                            bool write_in_background = false);
 
 }  // namespace lblight::test

@@ -111,7 +111,9 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   std::size_t total = 0;
   for (const ModelPlan& mp : plan.models) total += mp.solutions.size();
 
-  BakeOutput output(plan, target, {global.command_line, backend->name(), backend->description(), precision});
+  // On a GPU the host waits on the device: convert and write each solution while the next solves.
+  BakeOutput output(plan, target, {global.command_line, backend->name(), backend->description(), precision},
+                    /*write_in_background=*/!backend->occupies_host_cores());
   ProgressLog log(output, total);
   BakeOptions opt;
   opt.precision = precision;

@@ -556,6 +556,7 @@ class CudaBackend final : public Backend {
     return buf;
   }
   bool supports(Precision p) const override { return p != Precision::Float64; }
+  bool occupies_host_cores() const override { return false; }
   std::size_t bytes_per_system(const Dims& d, Precision p) const override {
     const std::size_t v = p == Precision::Float16 ? 2 : 4;
     return 2 * 19 * static_cast<std::size_t>(gpu_stride(d)) * v + d.count() * sizeof(float) +

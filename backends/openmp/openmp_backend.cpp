@@ -622,6 +622,7 @@ class OpenMpBackend final : public Backend {
     return "OpenMP, " + std::to_string(threads_) + " thread" + (threads_ == 1 ? "" : "s") + ", " + host_cpu_model();
   }
   bool supports(Precision p) const override { return p != Precision::Float16; }
+  bool occupies_host_cores() const override { return true; }
   std::size_t bytes_per_system(const Dims& d, Precision p) const override {
     const std::size_t v = p == Precision::Float64 ? 8 : 4;
     const std::size_t padded = static_cast<std::size_t>(d.nx + 32) * static_cast<std::size_t>(d.ny) *

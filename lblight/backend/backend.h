@@ -112,6 +112,9 @@ class Backend {
   virtual std::string name() const = 0;         // "cpu" or "cuda"
   virtual std::string description() const = 0;  // device and configuration, for logs and manifests
   virtual bool supports(Precision p) const = 0;
+  // True when the solver keeps the host's cores busy (OpenMP); false when the host mostly waits
+  // on a device, so a bake can write its output on another thread meanwhile.
+  virtual bool occupies_host_cores() const = 0;
   // Memory one system needs, and what the device has free, for planning batches.
   virtual std::size_t bytes_per_system(const Dims& dims, Precision p) const = 0;
   virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;

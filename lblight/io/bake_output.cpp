@@ -81,33 +81,107 @@ nlohmann::json savings_json(const ModelPlan& mp) {
   return j;
 }
 
-BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info)
-    : plan_(plan), dir_(target), info_(std::move(info)) {}
+BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
+                       bool write_in_background)
+    : plan_(plan), dir_(target), info_(std::move(info)), worker_(write_in_background) {}
 
-void BakeOutput::add(const ModelPlan&, SolutionResult& result) { pending_.push_back(std::move(result)); }
+BakeOutput::~BakeOutput() = default;
+
+namespace {
+nlohmann::json lattice_box_json(const ModelPlan& mp) {
+  const Dims& d = mp.lattice.dims;
+  return {{"lblight_lattice_min", mp.lattice_index_min}, {"lblight_lattice_dims", {d.nx, d.ny, d.nz}}};
+}
+DenseFrame dense_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+// Opens <model>.vdb and queues its density (and brown) grids; the solutions follow as they come.
+void BakeOutput::start_model(const ModelPlan& mp) {
+  model_ = &mp;
+  done_.clear();
+  encoded_.assign(mp.solutions.size(), LbhEncoded{});
+  output_seconds_ = 0;
+  if (!plan_.scene->output.vdb) return;
+  const bool has_wood = mp.lattice.material_count > 1;
+  const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
+                                    {"lblight_model", mp.spec->name},
+                                    {"lblight_scene_hash", plan_.scene->hash}};
+  vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
+                                           static_cast<int>(1 + has_wood + mp.solutions.size()), file_meta);
+  worker_.post([this, &mp, has_wood] {
+    const auto t0 = std::chrono::steady_clock::now();
+    const nlohmann::json box = lattice_box_json(mp);
+    vdb_->add({"density", &mp.lattice.density, nullptr, true, box});
+    if (has_wood) {
+      std::vector<float> brown(mp.lattice.dims.count());
+      for (std::size_t i = 0; i < brown.size(); ++i)
+        brown[i] = mp.lattice.material[i] == kMaterialWood && mp.lattice.density[i] > 0.0f ? 1.0f : 0.0f;
+      vdb_->add({"brown", &brown, nullptr, false, box});
+    }
+    output_seconds_ += since(t0);
+  });
+}
+
+void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
+  if (model_ != &mp) start_model(mp);
+  if (done_.size() >= encoded_.size())
+    throw Error(ErrorCategory::Internal, "bake output: more solutions than planned for model '" + mp.spec->name + "'");
+  // The worker owns the totals from here; the manifest row keeps everything else.
+  auto totals = std::make_shared<std::array<std::vector<float>, 3>>(std::move(result.totals));
+  done_.push_back(result);
+  const SolutionResult& r = done_.back();
+  const std::size_t slot = done_.size() - 1;
+
+  DenseGridOut g;
+  g.name = r.plan.grid_name;
+  g.metadata = lattice_box_json(mp);
+  g.metadata["lblight_solution"] = r.plan.index;
+  g.metadata["lblight_direction"] = r.plan.direction;
+  g.metadata["lblight_iterations"] = r.iterations;
+  g.metadata["lblight_error_estimate"] = r.error_estimate;
+  g.metadata["lblight_converged"] = r.converged;
+  LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
+  worker_.post([this, &mp, totals, g = std::move(g), lbh_in, slot]() mutable {
+    const auto t0 = std::chrono::steady_clock::now();
+    const LbhOutputSpec& lbh = plan_.scene->output.lbh;
+    if (lbh.enabled) {
+      lbh_in.rgb = totals.get();
+      encoded_[slot] = encode_lbh_solution({mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}, lbh_in,
+                                           {lbh.threshold, lbh.relative, lbh.coefficients});
+    }
+    if (vdb_) {
+      g.rgb = totals.get();
+      vdb_->add(g);
+    }
+    output_seconds_ += since(t0);
+  });
+}
 
 void BakeOutput::set_peak_bytes(const ModelPlan&, std::size_t bytes) { peak_bytes_ = std::max(peak_bytes_, bytes); }
 
 void BakeOutput::finish_model(const ModelPlan& mp) {
-  // Grids in index order (a B00 summed from the others arrives last).
-  std::stable_sort(pending_.begin(), pending_.end(),
-                   [](const SolutionResult& a, const SolutionResult& b) { return a.plan.index < b.plan.index; });
+  if (model_ != &mp) start_model(mp);  // a model without solutions still gets its density
+  const auto t_wait = std::chrono::steady_clock::now();
+  worker_.wait();
+  const double waited = since(t_wait);
   const bool write_grids = plan_.scene->output.vdb;
   const std::string file_name = mp.spec->name + ".vdb";
-  DenseFrame frame{mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world};
-  const nlohmann::json lattice_box = {{"lblight_lattice_min", mp.lattice_index_min},
-                                      {"lblight_lattice_dims", {frame.dims.nx, frame.dims.ny, frame.dims.nz}}};
-
-  std::vector<DenseGridOut> grids;
-  DenseGridOut density{"density", &mp.lattice.density, nullptr, true, lattice_box};
-  grids.push_back(density);
-  std::vector<float> brown;
-  if (mp.lattice.material_count > 1) {
-    brown.resize(mp.lattice.dims.count());
-    for (std::size_t i = 0; i < brown.size(); ++i)
-      brown[i] = mp.lattice.material[i] == kMaterialWood && mp.lattice.density[i] > 0.0f ? 1.0f : 0.0f;
-    grids.push_back({"brown", &brown, nullptr, false, lattice_box});
+  if (vdb_) {
+    vdb_->close();
+    spdlog::info("{}: {} grids, {:.1f} MiB, converted and written in {:.2f} s{}", file_name, vdb_->grids_written(),
+                 static_cast<double>(vdb_->bytes_written()) / 1048576.0, output_seconds_,
+                 worker_.background() ? fmt::format(" alongside the solve ({:.2f} s after it)", waited) : std::string());
+    vdb_.reset();
   }
+
+  // Manifest rows and .lbh solutions in index order (a B00 summed from the others arrives last).
+  std::vector<std::size_t> order(done_.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return done_[a].plan.index < done_[b].plan.index; });
 
   nlohmann::json model;
   model["name"] = mp.spec->name;
@@ -134,11 +208,9 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   const LbhOutputSpec& lbh = plan_.scene->output.lbh;
   const std::string lbh_name = mp.spec->name + ".lbh";
   std::vector<LbhEncoded> encoded;
-  if (lbh.enabled && !pending_.empty()) {
-    const LbhFrame lframe{frame.dims, frame.index_min, frame.index_to_world};
-    for (const SolutionResult& r : pending_)
-      encoded.push_back(encode_lbh_solution(lframe, {r.plan.grid_name, r.plan.index, r.plan.direction, &r.totals},
-                                            {lbh.threshold, lbh.relative, lbh.coefficients}));
+  if (lbh.enabled && !done_.empty()) {
+    for (std::size_t i : order) encoded.push_back(std::move(encoded_[i]));
+    const LbhFrame lframe{mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world};
     write_lbh(dir_.path(lbh_name), lframe, encoded);
     model["lbh_file"] = lbh_name;
     double raw = 0, packed = 0, worst_rms = 0;
@@ -155,19 +227,8 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
                  q8 == encoded.size() ? "8-bit" : q8 == 0 ? "f32" : "8-bit and f32", 100.0 * worst_rms);
   }
 
-  for (std::size_t si = 0; si < pending_.size(); ++si) {
-    const SolutionResult& r = pending_[si];
-    DenseGridOut g;
-    g.name = r.plan.grid_name;
-    g.rgb = &r.totals;
-    g.metadata = lattice_box;
-    g.metadata["lblight_solution"] = r.plan.index;
-    g.metadata["lblight_direction"] = r.plan.direction;
-    g.metadata["lblight_iterations"] = r.iterations;
-    g.metadata["lblight_error_estimate"] = r.error_estimate;
-    g.metadata["lblight_converged"] = r.converged;
-    grids.push_back(g);
-
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const SolutionResult& r = done_[order[k]];
     nlohmann::json s;
     s["index"] = r.plan.index;
     s["direction"] = r.plan.direction;
@@ -186,14 +247,12 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
       hist.push_back({c.step, c.seconds, finite_or_null(c.change_l2), finite_or_null(c.error_estimate),
                       finite_or_null(c.error_estimate_max)});
     s["residual_history"] = hist;
-    if (!encoded.empty()) s["compression"] = lbh_stats_json(encoded[si], lbh_name);
+    if (!encoded.empty()) s["compression"] = lbh_stats_json(encoded[k], lbh_name);
     model["solutions"].push_back(s);
   }
-  const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
-                                    {"lblight_model", mp.spec->name},
-                                    {"lblight_scene_hash", plan_.scene->hash}};
-  if (write_grids) write_vdb(dir_.path(file_name), frame, grids, file_meta);
-  pending_.clear();
+  model_ = nullptr;
+  done_.clear();
+  encoded_.clear();
   peak_bytes_ = 0;
   models_.push_back(model);
 }

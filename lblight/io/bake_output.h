@@ -1,6 +1,8 @@
 // Turns bake results into files: one <model>.vdb per model (float `density`, float `brown` when
-// the model has wood, Vec3f B00..B18 or `light`) and manifest.json, all inside a staged
-// directory that appears in place only when everything is written.
+// the model has wood, Vec3f B00..B18 or `light`), <model>.lbh when asked, and manifest.json, all
+// inside a staged directory that appears in place only when everything is written. Each solution
+// is converted, compressed and appended to the .vdb as it arrives (in arrival order), on a
+// background thread when the solver does not use the host's cores, so output overlaps the solve.
 #pragma once
 
 #include <filesystem>
@@ -11,7 +13,10 @@
 #include <nlohmann/json.hpp>
 
 #include "lblight/backend/backend.h"
+#include "lblight/compress/lbh_writer.h"
+#include "lblight/core/serial_worker.h"
 #include "lblight/io/output_dir.h"
+#include "lblight/io/vdb_stream_writer.h"
 #include "lblight/solve/bake.h"
 
 namespace lblight {
@@ -24,11 +29,14 @@ struct BakeRunInfo {
 
 class BakeOutput {
  public:
-  BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info);
+  // write_in_background: run the output work on a thread of its own (GPU backends).
+  BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
+             bool write_in_background = false);
+  ~BakeOutput();
 
   void add(const ModelPlan& model, SolutionResult& result);  // takes the totals
   void set_peak_bytes(const ModelPlan& model, std::size_t bytes);
-  void finish_model(const ModelPlan& model);                 // writes <model>.vdb
+  void finish_model(const ModelPlan& model);                 // completes <model>.vdb and .lbh
   // Writes manifest.json and moves the directory into place; returns the manifest.
   nlohmann::json commit(double total_seconds);
 
@@ -37,12 +45,20 @@ class BakeOutput {
   const nlohmann::json& models() const { return models_; }
 
  private:
+  void start_model(const ModelPlan& model);
+
   const BakePlan& plan_;
   StagedDirectory dir_;
   BakeRunInfo info_;
-  std::vector<SolutionResult> pending_;
+  // Per model, while it is being baked. Declared before worker_: the worker stops first.
+  const ModelPlan* model_ = nullptr;
+  std::vector<SolutionResult> done_;   // manifest rows (totals handed to the worker)
+  std::vector<LbhEncoded> encoded_;    // slot i: done_[i], filled by the worker
+  std::unique_ptr<VdbStreamWriter> vdb_;
+  double output_seconds_ = 0;          // worker time spent on this model's output
   std::size_t peak_bytes_ = 0;
   nlohmann::json models_ = nlohmann::json::array();
+  SerialWorker worker_;
 };
 
 // Manifest pieces shared with `validate --json` and `inspect`.

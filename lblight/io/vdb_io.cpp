@@ -10,23 +10,51 @@
 // not its default LayoutZYX (z fastest).
 
 #include "lblight/core/system_info.h"
+#include "lblight/io/vdb_common.h"
 
 namespace lblight {
-namespace {
+
+namespace vdb_detail {
 
 void ensure_initialized() {
   static std::once_flag once;
   std::call_once(once, [] { openvdb::initialize(); });
 }
 
-// Our matrices act on column vectors (translation in the 4th column); OpenVDB's Mat4d acts on
-// row vectors (translation in the 4th row): one is the transpose of the other.
 openvdb::math::Transform::Ptr to_vdb_transform(const std::array<double, 16>& m) {
   openvdb::math::Mat4d mat;
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) mat(c, r) = m[static_cast<std::size_t>(r * 4 + c)];
   return openvdb::math::Transform::createLinearTransform(mat);
 }
+
+void set_metadata(openvdb::MetaMap& meta, const nlohmann::json& j) {
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const auto& v = it.value();
+    const std::string& key = it.key();
+    if (v.is_boolean()) meta.insertMeta(key, openvdb::BoolMetadata(v.get<bool>()));
+    else if (v.is_number_integer()) meta.insertMeta(key, openvdb::Int64Metadata(v.get<long long>()));
+    else if (v.is_number()) {
+      const double d = v.get<double>();
+      // Infinity (an unknown error estimate) is written as -1 so every reader can parse it.
+      meta.insertMeta(key, openvdb::DoubleMetadata(std::isfinite(d) ? d : -1.0));
+    } else if (v.is_string()) meta.insertMeta(key, openvdb::StringMetadata(v.get<std::string>()));
+    else if (v.is_array() && v.size() == 3 && v[0].is_number_integer())
+      meta.insertMeta(key, openvdb::Vec3IMetadata(openvdb::Vec3i(v[0].get<int>(), v[1].get<int>(), v[2].get<int>())));
+    else meta.insertMeta(key, openvdb::StringMetadata(v.dump()));
+  }
+}
+
+openvdb::CoordBBox frame_bbox(const DenseFrame& f) {
+  const openvdb::Coord lo(f.index_min[0], f.index_min[1], f.index_min[2]);
+  return {lo, lo.offsetBy(f.dims.nx - 1, f.dims.ny - 1, f.dims.nz - 1)};
+}
+
+}  // namespace vdb_detail
+
+namespace {
+
+using vdb_detail::ensure_initialized;
 
 std::array<double, 16> from_vdb_transform(const openvdb::math::Transform& t, const std::string& what,
                                           const Location& where) {
@@ -60,23 +88,6 @@ openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::s
   return g;
 }
 
-void set_metadata(openvdb::MetaMap& meta, const nlohmann::json& j) {
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    const auto& v = it.value();
-    const std::string& key = it.key();
-    if (v.is_boolean()) meta.insertMeta(key, openvdb::BoolMetadata(v.get<bool>()));
-    else if (v.is_number_integer()) meta.insertMeta(key, openvdb::Int64Metadata(v.get<long long>()));
-    else if (v.is_number()) {
-      const double d = v.get<double>();
-      // Infinity (an unknown error estimate) is written as -1 so every reader can parse it.
-      meta.insertMeta(key, openvdb::DoubleMetadata(std::isfinite(d) ? d : -1.0));
-    } else if (v.is_string()) meta.insertMeta(key, openvdb::StringMetadata(v.get<std::string>()));
-    else if (v.is_array() && v.size() == 3 && v[0].is_number_integer())
-      meta.insertMeta(key, openvdb::Vec3IMetadata(openvdb::Vec3i(v[0].get<int>(), v[1].get<int>(), v[2].get<int>())));
-    else meta.insertMeta(key, openvdb::StringMetadata(v.dump()));
-  }
-}
-
 nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
   nlohmann::json j = nlohmann::json::object();
   for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it) {
@@ -94,13 +105,6 @@ nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
     } else j[it->first] = m->str();
   }
   return j;
-}
-
-// lblight arrays are x fastest, index (z * ny + y) * nx + x: OpenVDB's LayoutXYZ (its LayoutZYX,
-// the Dense default, is z fastest and would scramble every grid for other OpenVDB readers).
-openvdb::CoordBBox frame_bbox(const DenseFrame& f) {
-  const openvdb::Coord lo(f.index_min[0], f.index_min[1], f.index_min[2]);
-  return {lo, lo.offsetBy(f.dims.nx - 1, f.dims.ny - 1, f.dims.nz - 1)};
 }
 
 }  // namespace
@@ -164,46 +168,6 @@ ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
   }
   g.description = "grid '" + src.grid + "' of " + src.path.string();
   return g;
-}
-
-void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,
-               const nlohmann::json& file_metadata) {
-  ensure_initialized();
-  const auto transform = to_vdb_transform(frame.index_to_world);
-  const openvdb::CoordBBox bbox = frame_bbox(frame);
-  openvdb::GridPtrVec out;
-  for (const DenseGridOut& spec : grids) {
-    openvdb::GridBase::Ptr g;
-    if (spec.scalar) {
-      auto fg = openvdb::FloatGrid::create(0.0f);
-      openvdb::tools::Dense<const float, openvdb::tools::LayoutXYZ> dense(bbox, spec.scalar->data());
-      openvdb::tools::copyFromDense(dense, *fg, 0.0f);
-      if (spec.fog_volume) fg->setGridClass(openvdb::GRID_FOG_VOLUME);
-      g = fg;
-    } else {
-      auto vg = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
-      std::vector<openvdb::Vec3s> interleaved(frame.dims.count());
-      for (std::size_t i = 0; i < interleaved.size(); ++i)
-        interleaved[i] = openvdb::Vec3s((*spec.rgb)[0][i], (*spec.rgb)[1][i], (*spec.rgb)[2][i]);
-      openvdb::tools::Dense<const openvdb::Vec3s, openvdb::tools::LayoutXYZ> dense(bbox, interleaved.data());
-      openvdb::tools::copyFromDense(dense, *vg, openvdb::Vec3s(0.0f));
-      vg->setVectorType(openvdb::VEC_INVARIANT);
-      g = vg;
-    }
-    g->setName(spec.name);
-    g->setTransform(transform->copy());
-    set_metadata(*g, spec.metadata);
-    out.push_back(g);
-  }
-  openvdb::MetaMap meta;
-  set_metadata(meta, file_metadata);
-  try {
-    openvdb::io::File f(file.string());
-    f.write(out, meta);
-    f.close();
-  } catch (const openvdb::Exception& e) {
-    throw_io(std::string("cannot write VDB file: ") + e.what(), {file.string(), {}, {}});
-  }
 }
 
 DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& name) {
