@@ -569,8 +569,8 @@ class CudaBackend final : public Backend {
     GPU_CHECK(gpuMemGetInfo(&free_bytes, &total));
     return free_bytes;
   }
-  int preferred_batch(const Dims&, Precision, int total_systems) const override {
-    return std::min(total_systems, kMaxBatch);
+  int preferred_batch(const Dims& d, Precision, int total_systems) const override {
+    return systems_to_fill(d, total_systems);
   }
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {

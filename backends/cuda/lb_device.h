@@ -140,6 +140,19 @@ LBL_HOSTDEV inline void interior_coords(const Dims& d, long long n, int& x, int&
   z = 1 + static_cast<int>(n / (ix * iy));
 }
 
+// Systems per launch: enough to fill the GPU several times over (4M node updates), and no more.
+// At 128^3 one system is already ~2M threads, and a batch both runs until its slowest system
+// converges and hands its solutions to the output (written alongside the next batch's solve)
+// only when it ends; small lattices batch many systems to keep launches large.
+inline int systems_to_fill(const Dims& d, int total_systems) {
+  constexpr double kFillNodes = 4.0 * 1024 * 1024;
+  const double interior = static_cast<double>(d.interior_count() > 0 ? d.interior_count() : 1);
+  int want = static_cast<int>(kFillNodes / interior + 0.999999);
+  if (want > kMaxBatch) want = kMaxBatch;
+  if (want > total_systems) want = total_systems;
+  return want < 1 ? 1 : want;
+}
+
 // Direction-array stride for GPU state: a multiple of 32 elements keeps every array aligned for
 // coalesced access.
 inline long long gpu_stride(const Dims& d) {

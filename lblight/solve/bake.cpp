@@ -21,36 +21,6 @@ std::string gib(std::size_t bytes) {
   return buf;
 }
 
-// How many systems one batch holds: whole solutions where possible, within device memory.
-// Krylov solves take one system at a time (their vectors belong to system 0).
-int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
-  const Dims& d = mp.lattice.dims;
-  const std::size_t per_system = backend.bytes_per_system(d, opt.precision);
-  const std::size_t fixed = backend.bytes_per_lattice(d);
-  const std::size_t avail = backend.available_bytes();
-  const int channels = static_cast<int>(mp.channels.size());
-  const int total = static_cast<int>(mp.systems());
-  const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
-  int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, opt.precision, total);
-  want = krylov ? 1 : std::max(1, std::min(want, total));
-  if (want > channels) want -= want % channels;  // whole solutions per batch
-  // Krylov vectors: 8 more state-sized arrays (about 4 systems' worth).
-  const std::size_t extra = krylov ? 4 * per_system : 0;
-  if (avail > 0) {
-    // keep a tenth of the free memory for everything else
-    const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(fixed + extra);
-    const int fit = usable > 0 ? static_cast<int>(usable / static_cast<double>(per_system)) : 0;
-    if (fit < 1)
-      throw Error(ErrorCategory::Unavailable,
-                  "model '" + mp.spec->name + "': a " + std::to_string(d.nx) + "x" + std::to_string(d.ny) + "x" +
-                      std::to_string(d.nz) + " lattice needs " + gib(fixed + extra + per_system) + " on the " +
-                      backend.name() + " backend but only " + gib(avail) +
-                      " is available; lower the resolution or use a machine with more memory");
-    want = std::min(want, fit);
-  }
-  return want;
-}
-
 // How one batch ended.
 struct BatchOutcome {
   int steps = 0;
@@ -259,6 +229,46 @@ class AmbientSum {
 };
 
 }  // namespace
+
+// An uneven last batch would step as often as the others with a fraction of the device busy.
+int balanced_batch(int total, int capacity, int channels) {
+  if (total <= capacity) return std::max(1, total);
+  const int batches = (total + capacity - 1) / capacity;
+  int even = (total + batches - 1) / batches;
+  if (capacity % channels == 0) even = (even + channels - 1) / channels * channels;  // still <= capacity
+  return even;
+}
+
+// Krylov solves take one system at a time (their vectors belong to system 0).
+int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
+  const Dims& d = mp.lattice.dims;
+  const std::size_t per_system = backend.bytes_per_system(d, opt.precision);
+  const std::size_t fixed = backend.bytes_per_lattice(d);
+  const std::size_t avail = backend.available_bytes();
+  const int channels = static_cast<int>(mp.channels.size());
+  const int total = static_cast<int>(mp.systems());
+  const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
+  int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, opt.precision, total);
+  want = krylov ? 1 : std::max(1, std::min(want, total));
+  // A backend's own choice covers at least one whole solution (its channels share the launch).
+  if (!krylov && opt.max_systems <= 0) want = std::max(want, std::min(channels, total));
+  // Krylov vectors: 8 more state-sized arrays (about 4 systems' worth).
+  const std::size_t extra = krylov ? 4 * per_system : 0;
+  if (avail > 0) {
+    // keep a tenth of the free memory for everything else
+    const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(fixed + extra);
+    const int fit = usable > 0 ? static_cast<int>(usable / static_cast<double>(per_system)) : 0;
+    if (fit < 1)
+      throw Error(ErrorCategory::Unavailable,
+                  "model '" + mp.spec->name + "': a " + std::to_string(d.nx) + "x" + std::to_string(d.ny) + "x" +
+                      std::to_string(d.nz) + " lattice needs " + gib(fixed + extra + per_system) + " on the " +
+                      backend.name() + " backend but only " + gib(avail) +
+                      " is available; lower the resolution or use a machine with more memory");
+    want = std::min(want, fit);
+  }
+  if (want > channels) want -= want % channels;  // whole solutions per batch
+  return balanced_batch(total, want, channels);
+}
 
 void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer) {
   if (mp.steps.method == SolverMethod::BiCGStab && mp.steps.mode != IterationMode::Auto)

@@ -56,6 +56,14 @@ struct BakeOptions {
   const std::atomic<bool>* cancel = nullptr;  // checked between step chunks
 };
 
+// Systems per batch for `model` on `backend`: the backend's preference (or options.max_systems),
+// at least one whole solution when the backend chooses, whole solutions where possible, within
+// the device's free memory (Error(Unavailable) when not even one system fits), then evened out.
+int batch_capacity(const ModelPlan& model, const Backend& backend, const BakeOptions& options);
+// The smallest batch size that needs no more batches than `capacity` does, a multiple of
+// `channels` when `capacity` is: 57 systems at capacity 18 run as 15+15+15+12.
+int balanced_batch(int total, int capacity, int channels);
+
 void bake_model(const ModelPlan& model, const Backend& backend, const BakeOptions& options, BakeObserver& observer);
 
 }  // namespace lblight

@@ -1,0 +1,99 @@
+// How a bake splits its systems into batches (solve/bake.h): whole solutions, within memory,
+// evened out; and the CUDA backend's fill rule (backends/cuda/lb_device.h, host code).
+#include <catch2/catch.hpp>
+
+#include "backends/cuda/lb_device.h"
+#include "lblight/core/error.h"
+#include "tests/test_support.h"
+
+using namespace lblight;
+
+namespace {
+
+// Only what batch planning asks of a backend; creating a solver is not part of it.
+class PlanningBackend final : public Backend {
+ public:
+  PlanningBackend(int preferred, std::size_t available, std::size_t per_system = 1000)
+      : preferred_(preferred), available_(available), per_system_(per_system) {}
+  std::string name() const override { return "planning"; }
+  std::string description() const override { return "batch planning only"; }
+  bool supports(Precision) const override { return true; }
+  bool occupies_host_cores() const override { return false; }
+  std::size_t bytes_per_system(const Dims&, Precision) const override { return per_system_; }
+  std::size_t bytes_per_lattice(const Dims&) const override { return 0; }
+  std::size_t available_bytes() const override { return available_; }
+  int preferred_batch(const Dims&, Precision, int total) const override { return std::min(preferred_, total); }
+  std::unique_ptr<LatticeSolver> create(const LatticeGeometry&, const std::vector<ChannelMaterials>&,
+                                        const SolverOptions&) const override {
+    throw Error(ErrorCategory::Internal, "planning backend cannot solve");
+  }
+  double measure_copy_bandwidth(std::size_t) const override { return 0; }
+
+ private:
+  int preferred_;
+  std::size_t available_, per_system_;
+};
+
+struct PlanFixture {
+  ModelSpec spec;
+  ModelPlan mp;
+  PlanFixture(int solutions, int channels, Dims d = {16, 16, 16}) {
+    spec.name = "m";
+    mp.spec = &spec;
+    mp.lattice.dims = d;
+    mp.channels.resize(static_cast<std::size_t>(channels));
+    mp.solutions.resize(static_cast<std::size_t>(solutions));
+  }
+};
+
+}  // namespace
+
+TEST_CASE("balanced_batch evens batches out without adding any", "[batching]") {
+  CHECK(balanced_batch(57, 18, 3) == 15);  // 15+15+15+12, not 18+18+18+3
+  CHECK(balanced_batch(57, 3, 3) == 3);
+  CHECK(balanced_batch(57, 64, 3) == 57);
+  CHECK(balanced_batch(54, 33, 3) == 27);
+  CHECK(balanced_batch(10, 4, 1) == 4);    // 4+4+2: three batches either way
+  CHECK(balanced_batch(9, 4, 1) == 3);     // 3+3+3 instead of 4+4+1
+  CHECK(balanced_batch(57, 20, 3) == 19);  // capacity not whole solutions: plain evening out
+  CHECK(balanced_batch(1, 5, 3) == 1);
+  for (int total = 1; total <= 70; ++total)
+    for (int cap = 1; cap <= 70; ++cap)
+      for (int ch = 1; ch <= 3; ++ch) {
+        const int b = balanced_batch(total, cap, ch);
+        INFO(total << " systems, capacity " << cap << ", " << ch << " channels -> " << b);
+        REQUIRE(b >= 1);
+        REQUIRE(b <= std::max(1, std::min(total, cap)));
+        REQUIRE((total + b - 1) / b == (total + std::min(total, cap) - 1) / std::min(total, cap));
+        if (cap % ch == 0 && total % ch == 0) REQUIRE(b % ch == 0);
+      }
+}
+
+TEST_CASE("batch_capacity: whole solutions, the backend's preference, memory", "[batching]") {
+  PlanFixture f(19, 3);  // 57 systems
+  const BakeOptions opt;
+  CHECK(batch_capacity(f.mp, PlanningBackend(3, 0), opt) == 3);       // the CPU's choice
+  CHECK(batch_capacity(f.mp, PlanningBackend(1, 0), opt) == 3);       // a backend's 1 grows to a solution
+  CHECK(batch_capacity(f.mp, PlanningBackend(64, 0), opt) == 57);     // one batch
+  CHECK(batch_capacity(f.mp, PlanningBackend(18, 0), opt) == 15);     // 4 batches, evened out
+  CHECK(batch_capacity(f.mp, PlanningBackend(64, 5000), opt) == 3);   // 0.9 * 5000 / 1000 = 4 fit -> 1 solution
+  CHECK(batch_capacity(f.mp, PlanningBackend(64, 2500), opt) == 2);   // 2 fit: channels split
+  CHECK_THROWS_AS(batch_capacity(f.mp, PlanningBackend(64, 1000), opt), Error);  // not even one system
+  BakeOptions user;
+  user.max_systems = 1;  // asked for explicitly: kept
+  CHECK(batch_capacity(f.mp, PlanningBackend(64, 0), user) == 1);
+  f.mp.steps.method = SolverMethod::BiCGStab;  // Krylov vectors belong to system 0
+  CHECK(batch_capacity(f.mp, PlanningBackend(64, 0), opt) == 1);
+}
+
+TEST_CASE("CUDA batches: small lattices share launches, 128^3 runs a solution at a time", "[batching]") {
+  CHECK(gpu::systems_to_fill({128, 128, 128}, 57) == 3);  // 2.0M interior nodes: 2 fill, 3 = one solution
+  CHECK(gpu::systems_to_fill({256, 256, 256}, 57) == 1);
+  CHECK(gpu::systems_to_fill({64, 64, 64}, 57) == 18);
+  CHECK(gpu::systems_to_fill({32, 32, 32}, 57) == 57);
+  CHECK(gpu::systems_to_fill({16, 16, 16}, 200) == gpu::kMaxBatch);
+  PlanFixture big(19, 3, {128, 128, 128});
+  CHECK(batch_capacity(big.mp, PlanningBackend(gpu::systems_to_fill({128, 128, 128}, 57), 0), {}) == 3);
+  PlanFixture mid(19, 3, {64, 64, 64});
+  CHECK(batch_capacity(mid.mp, PlanningBackend(gpu::systems_to_fill({64, 64, 64}, 57), 0), {}) == 15);
+}
