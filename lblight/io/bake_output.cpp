@@ -109,8 +109,12 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
                                     {"lblight_model", mp.spec->name},
                                     {"lblight_scene_hash", plan_.scene->hash}};
+  // In the background, up to 4 grids compress at once (Blosc is serial per grid and would
+  // otherwise fall behind a GPU); inline, the OpenMP solver needs the cores back after each grid.
+  const int parallel_grids = worker_.background() ? 4 : 1;
   vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
-                                           static_cast<int>(1 + has_wood + mp.solutions.size()), file_meta);
+                                           static_cast<int>(1 + has_wood + mp.solutions.size()), file_meta,
+                                           parallel_grids);
   worker_.post([this, &mp, has_wood] {
     const auto t0 = std::chrono::steady_clock::now();
     const nlohmann::json box = lattice_box_json(mp);

@@ -1,13 +1,20 @@
 #include "lblight/io/vdb_stream_writer.h"
 
+#include <cstring>
+#include <exception>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include <openvdb/io/GridDescriptor.h>
 #include <openvdb/io/io.h>
 #include <openvdb/tools/Dense.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include "lblight/io/vdb_common.h"
 
@@ -40,6 +47,34 @@ class IncrementalArchive : public openvdb::io::Archive {
     writeGrid(gd, grid, os, /*seekable=*/true);
     // Mask compression is chosen per grid; the next grid starts from the file's settings.
     openvdb::io::setDataCompression(os, compression());
+  }
+
+  // The bytes add() would append to a stream positioned at 0, with the stream state begin() sets
+  // up, and the offset of the descriptor's three stream positions in them (see relocate).
+  std::string serialize(const openvdb::GridBase::ConstPtr& grid, std::size_t& positions_at) const {
+    std::ostringstream os(std::ios::out | std::ios::binary);
+    openvdb::io::StreamMetadata::Ptr sm(new openvdb::io::StreamMetadata);
+    openvdb::io::setStreamMetadataPtr(os, sm, /*transfer=*/false);
+    openvdb::io::setDataCompression(os, compression());
+    openvdb::io::setWriteGridStatsMetadata(os, isGridStatsMetadataEnabled());
+    openvdb::io::GridDescriptor gd(grid->getName(), grid->type(), grid->saveFloatAsHalf());
+    std::ostringstream header(std::ios::out | std::ios::binary);
+    gd.writeHeader(header);
+    positions_at = static_cast<std::size_t>(header.tellp());
+    writeGrid(gd, grid, os, /*seekable=*/true);
+    return std::move(os).str();
+  }
+
+  // A serialized grid's descriptor holds three absolute stream positions (grid, blocks, end);
+  // moving the bytes to `base` in the file moves those by `base`.
+  static void relocate(std::string& bytes, std::size_t positions_at, std::int64_t base) {
+    for (int k = 0; k < 3; ++k) {
+      std::int64_t pos;
+      char* at = bytes.data() + positions_at + k * sizeof pos;
+      std::memcpy(&pos, at, sizeof pos);
+      pos += base;
+      std::memcpy(at, &pos, sizeof pos);
+    }
   }
 
  private:
@@ -80,21 +115,50 @@ struct VdbStreamWriter::Impl {
   openvdb::math::Transform::Ptr transform;
   std::ofstream os;
   IncrementalArchive archive;
-  int announced = 0, written = 0;
+  int announced = 0, added = 0;
   std::set<std::string> names;
   bool closed = false;
 
+  // Parallel mode: grids compressing on TBB threads, and those done but waiting for an earlier one.
+  int parallel = 1;
+  tbb::task_group group;
+  std::mutex mutex;  // guards everything below and the stream
+  int in_flight = 0, written = 0;
+  struct Serialized {
+    std::string bytes;
+    std::size_t positions_at = 0;
+  };
+  std::map<int, Serialized> done;  // by add() order
+  std::exception_ptr failure;
+
   Location where() const { return {file.string(), {}, {}}; }
-  void check_stream(const char* what) {
-    if (!os) throw_io(std::string("cannot write VDB file (") + what + "; disk full?)", where());
+  void check_stream(const std::string& what) {
+    if (!os) throw_io("cannot write VDB file (" + what + "; disk full?)", where());
+  }
+  // Appends the grids that are next in order (mutex held).
+  void append_ready() {
+    for (auto it = done.find(written); it != done.end(); it = done.find(written)) {
+      Serialized& g = it->second;
+      IncrementalArchive::relocate(g.bytes, g.positions_at, static_cast<std::int64_t>(os.tellp()));
+      os.write(g.bytes.data(), static_cast<std::streamsize>(g.bytes.size()));
+      check_stream("grid " + std::to_string(written));
+      done.erase(it);
+      ++written;
+    }
+  }
+  void wait_for_grids() {
+    group.wait();
+    std::lock_guard<std::mutex> lock(mutex);
+    if (failure) std::rethrow_exception(failure);
   }
 };
 
 VdbStreamWriter::VdbStreamWriter(const std::filesystem::path& file, const DenseFrame& frame, int grid_count,
-                                 const nlohmann::json& file_metadata)
+                                 const nlohmann::json& file_metadata, int parallel_grids)
     : impl_(std::make_unique<Impl>()) {
   ensure_initialized();
   Impl& s = *impl_;
+  s.parallel = std::max(1, parallel_grids);
   s.file = file;
   s.frame = frame;
   s.transform = to_vdb_transform(frame.index_to_world);
@@ -111,30 +175,80 @@ VdbStreamWriter::VdbStreamWriter(const std::filesystem::path& file, const DenseF
   s.check_stream("header");
 }
 
-VdbStreamWriter::~VdbStreamWriter() = default;
+VdbStreamWriter::~VdbStreamWriter() {
+  try {
+    impl_->group.wait();  // tasks refer to impl_
+  } catch (...) {
+  }
+}
 
 void VdbStreamWriter::add(const DenseGridOut& spec) {
   Impl& s = *impl_;
-  if (s.closed || s.written >= s.announced)
+  if (s.closed || s.added >= s.announced)
     throw Error(ErrorCategory::Internal, "VDB writer: more grids than announced for " + s.file.string());
   if (!s.names.insert(spec.name).second)
     throw Error(ErrorCategory::Internal, "VDB writer: grid name '" + spec.name + "' given twice");
-  openvdb::GridBase::Ptr g = make_grid(s.frame, spec);
+  // Isolated: while waiting inside its parallel loops, this thread must not pick up another
+  // grid's compression task (add() would then return only after that whole grid is written).
+  openvdb::GridBase::Ptr g;
+  tbb::this_task_arena::isolate([&] { g = make_grid(s.frame, spec); });
   g->setTransform(s.transform->copy());
-  try {
-    s.archive.add(s.os, g);
-  } catch (const openvdb::Exception& e) {
-    throw_io(std::string("cannot write VDB file: ") + e.what(), s.where());
+  const int seq = s.added++;
+  if (s.parallel == 1) {
+    try {
+      s.archive.add(s.os, g);
+    } catch (const openvdb::Exception& e) {
+      throw_io(std::string("cannot write VDB file: ") + e.what(), s.where());
+    }
+    s.check_stream(spec.name);
+    ++s.written;
+    return;
   }
-  s.check_stream(spec.name.c_str());
-  ++s.written;
+  // With every slot busy, this thread compresses its grid itself rather than wait idle.
+  bool here = false;
+  {
+    std::lock_guard<std::mutex> lock(s.mutex);
+    if (s.failure) std::rethrow_exception(s.failure);
+    here = s.in_flight >= s.parallel;
+    if (!here) ++s.in_flight;
+  }
+  auto compress = [&s, g = openvdb::GridBase::ConstPtr(g), seq, here] {
+    Impl::Serialized out;
+    std::exception_ptr failure;
+    try {
+      out.bytes = s.archive.serialize(g, out.positions_at);
+    } catch (const openvdb::Exception& e) {
+      failure = std::make_exception_ptr(Error(ErrorCategory::Io, "cannot write VDB file " + s.file.string() + ": " + e.what()));
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    std::lock_guard<std::mutex> lock(s.mutex);
+    try {
+      if (!failure) {
+        s.done.emplace(seq, std::move(out));
+        s.append_ready();
+      }
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    if (failure && !s.failure) s.failure = failure;
+    if (!here) --s.in_flight;
+  };
+  if (here) {
+    compress();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    if (s.failure) std::rethrow_exception(s.failure);
+  } else {
+    s.group.run(std::move(compress));
+  }
 }
 
 void VdbStreamWriter::close() {
   Impl& s = *impl_;
   if (s.closed) return;
-  if (s.written != s.announced)
-    throw Error(ErrorCategory::Internal, "VDB writer: " + std::to_string(s.written) + " of " +
+  s.wait_for_grids();
+  if (s.added != s.announced)
+    throw Error(ErrorCategory::Internal, "VDB writer: " + std::to_string(s.added) + " of " +
                                              std::to_string(s.announced) + " announced grids written to " +
                                              s.file.string());
   s.os.close();
@@ -143,11 +257,14 @@ void VdbStreamWriter::close() {
 }
 
 std::uint64_t VdbStreamWriter::bytes_written() const {
-  auto& os = impl_->os;
-  return impl_->closed ? std::filesystem::file_size(impl_->file) : static_cast<std::uint64_t>(os.tellp());
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->closed ? std::filesystem::file_size(impl_->file) : static_cast<std::uint64_t>(impl_->os.tellp());
 }
 
-int VdbStreamWriter::grids_written() const { return impl_->written; }
+int VdbStreamWriter::grids_written() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->written;
+}
 
 void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,
                const nlohmann::json& file_metadata) {
