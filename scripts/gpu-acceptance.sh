@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# Issue 5's measurements on a machine with an NVIDIA GPU, in one go, for docs/performance.md:
+# build with CUDA, the GPU conformance tests (and compute-sanitizer when installed), bench at
+# 64/128/256 in float32 and float16 with the copy bandwidth measured in the same run, and the
+# complete 19 x 3 plant-128 bake timed on the GPU (float32, float16) and on the CPU, with the GPU
+# grids compared to the CPU's. Everything lands in OUTDIR; summary.txt has the headline figures.
+# Exit 77 (skipped) when no GPU is usable.
+#   usage: scripts/gpu-acceptance.sh [OUTDIR]     (default: out/gpu-acceptance)
+#   SKIP_CPU_REFERENCE=1 leaves out the CPU bake and the comparison (minutes on few cores).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+out="${1:-out/gpu-acceptance}"
+mkdir -p "$out"
+summary="$out/summary.txt"
+: > "$summary"
+note() { echo "$*" | tee -a "$summary"; }
+timed() {  # timed LOG command...: appends the command's stderr and its wall time to LOG
+  local log="$1"; shift
+  local t0 t1
+  t0=$(date +%s%N)
+  "$@" >> "$log" 2>&1
+  local rc=$?
+  t1=$(date +%s%N)
+  echo "$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f", (b - a) / 1e9 }') s (exit $rc): $*" | tee -a "$log" >> "$summary"
+  return $rc
+}
+
+if ! nvidia-smi > "$out/nvidia-smi.txt" 2>&1; then
+  echo "SKIPPED: nvidia-smi found no usable GPU (see $out/nvidia-smi.txt)"
+  exit 77
+fi
+note "GPU: $(nvidia-smi --query-gpu=name,memory.total,driver_version,clocks.max.memory --format=csv,noheader)"
+note "CPU: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
+note "commit: $(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+
+note "== build"
+if ! timed "$out/build.log" cmake -S . -B build -DCMAKE_BUILD_TYPE=Release ||
+   ! timed "$out/build.log" cmake --build build -j"$(nproc)"; then
+  note "build failed: $out/build.log"
+  exit 1
+fi
+[ -f build/backends/cuda/liblblight_cuda.a ] || note "warning: the CUDA backend was not built (nvcc not found?)"
+exe=build/lblight
+
+note "== GPU conformance (CUDA vs OpenMP to 1e-5, determinism, float16 error, bake grids)"
+timed "$out/gpu_conformance.log" ctest --test-dir build -R gpu_conformance --output-on-failure -V
+if command -v compute-sanitizer > /dev/null && [ -x build/tests/lblight_gpu_tests ]; then
+  timed "$out/memcheck.log" compute-sanitizer --tool memcheck --error-exitcode 3 build/tests/lblight_gpu_tests
+  timed "$out/racecheck.log" compute-sanitizer --tool racecheck --error-exitcode 3 build/tests/lblight_gpu_tests
+fi
+
+note "== bench (updates/s and fraction of the copy bandwidth measured in the same run)"
+timed "$out/bench.log" "$exe" bench --backend cuda --size 64 128 256 --precision float32 float16
+"$exe" bench --backend cuda --size 64 128 256 --precision float32 float16 --json > "$out/bench.json" 2>> "$out/bench.log"
+timed "$out/bench.log" "$exe" bench --backend cuda --size 128 --systems 3 --precision float32 float16
+timed "$out/bench.log" "$exe" bench --backend cuda --size 64 --systems 15 --precision float32
+grep -E "^(measured copy|[0-9]+x[0-9]+x[0-9]+ )" "$out/bench.log" >> "$summary"
+
+note "== plant-128: complete 19 x 3 bake, 260 steps, including voxelisation and I/O"
+for run in 1 2 3; do
+  timed "$out/bake-gpu-f32.log" "$exe" bake configs/plant-128.json --backend cuda -o "$out/plant-128-gpu"
+done
+grep -h "converted and written" "$out/bake-gpu-f32.log" | tail -n 1 >> "$summary"
+for run in 1 2; do
+  timed "$out/bake-gpu-f16.log" "$exe" bake configs/plant-128.json --backend cuda --precision float16 \
+    -o "$out/plant-128-gpu-f16"
+done
+
+if [ "${SKIP_CPU_REFERENCE:-0}" != 1 ]; then
+  note "== plant-128 on the CPU (OpenMP, $(nproc) threads) and the GPU grids against it"
+  timed "$out/bake-cpu.log" "$exe" bake configs/plant-128.json --backend cpu -o "$out/plant-128-cpu"
+  if /usr/bin/python3 -c "import pyopenvdb" 2> /dev/null; then
+    for gpu in plant-128-gpu plant-128-gpu-f16; do
+      note "$gpu against the CPU bake:"
+      /usr/bin/python3 scripts/compare_bakes.py "$out/plant-128-cpu" "$out/$gpu" > "$out/compare-$gpu.txt"
+      tail -n 1 "$out/compare-$gpu.txt" | tee -a "$summary"
+    done
+  else
+    note "(python3-openvdb not installed: grids not compared)"
+  fi
+fi
+note "== done: $out"
