@@ -51,8 +51,13 @@ TEST_CASE("SerialWorker runs tasks in order and reports the first failure", "[io
 
     std::atomic<int> after{0};
     if (background) {
-      w.post([] { throw std::runtime_error("disk full"); });
+      std::atomic<bool> go{false};
+      w.post([&go] {
+        while (!go) std::this_thread::yield();  // fail only once the next task is queued
+        throw std::runtime_error("disk full");
+      });
       w.post([&after] { ++after; });  // builds on the failed task: must not run
+      go = true;
       CHECK_THROWS_WITH(w.wait(), "disk full");
       CHECK(after == 0);
       CHECK_THROWS_WITH(w.post([&after] { ++after; }), "disk full");  // the bake stops here

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <future>
 #include <iostream>
 #include <memory>
 
@@ -98,7 +99,13 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
                           : std::filesystem::path(args.output);
   StagedDirectory::check_target(target);  // fail before any solving
 
-  auto backend = args.solve.make_backend();
+  // Starting a GPU (driver and context, 0.1-1 s) overlaps loading and voxelising the models; a
+  // failure to start is reported once the plan is made.
+  std::future<std::unique_ptr<Backend>> starting;
+  if (args.solve.backend != "cpu")
+    starting = std::async(std::launch::async, [&args] { return args.solve.make_backend(); });
+  const BakePlan plan = make_plan(scene, ov);
+  auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
   const Precision precision = ov.precision.value_or(scene.solver.precision);
   if (!backend->supports(precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(precision) +
@@ -106,7 +113,6 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
                   {scene.file.string(), "/solver/precision", {}});
 
   spdlog::info("scene '{}' ({}), backend: {}", scene.name, scene.file.string(), backend->description());
-  const BakePlan plan = make_plan(scene, ov);
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
   std::size_t total = 0;
   for (const ModelPlan& mp : plan.models) total += mp.solutions.size();
