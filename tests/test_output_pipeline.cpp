@@ -69,6 +69,33 @@ TEST_CASE("SerialWorker runs tasks in order and reports the first failure", "[io
   }
 }
 
+TEST_CASE("SerialWorker holds back a producer that runs ahead of it", "[io]") {
+  SerialWorker w(true);
+  std::atomic<bool> go{false};
+  std::vector<int> seen;
+  w.post([&go, &seen] {
+    while (!go) std::this_thread::yield();
+    seen.push_back(0);
+  });
+  // the first task may not have started yet: kMaxQueued more posts may or may not fill the queue
+  for (std::size_t i = 1; i < SerialWorker::kMaxQueued; ++i) w.post([&seen, i] { seen.push_back(static_cast<int>(i)); });
+  std::atomic<int> returned{0};
+  std::thread producer([&] {
+    for (std::size_t i = SerialWorker::kMaxQueued; i < SerialWorker::kMaxQueued + 2; ++i) {
+      w.post([&seen, i] { seen.push_back(static_cast<int>(i)); });
+      ++returned;
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  CHECK(returned <= 1);  // at most one more fits while the first task holds the worker
+  go = true;
+  producer.join();
+  w.wait();
+  CHECK(returned == 2);
+  REQUIRE(seen.size() == SerialWorker::kMaxQueued + 2);
+  for (std::size_t i = 0; i < seen.size(); ++i) CHECK(seen[i] == static_cast<int>(i));
+}
+
 TEST_CASE("SerialWorker abandoned with work queued stops after the running task", "[io]") {
   std::atomic<int> ran{0};
   {
@@ -77,7 +104,7 @@ TEST_CASE("SerialWorker abandoned with work queued stops after the running task"
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
       ++ran;
     });
-    for (int i = 0; i < 20; ++i) w.post([&ran] { ++ran; });
+    for (std::size_t i = 1; i < SerialWorker::kMaxQueued; ++i) w.post([&ran] { ++ran; });  // fits the queue
     std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the first task is running
   }
   CHECK(ran == 1);

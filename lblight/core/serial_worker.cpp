@@ -27,7 +27,8 @@ void SerialWorker::post(std::function<void()> task) {
     return;
   }
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
+    room_.wait(lock, [this] { return tasks_.size() < kMaxQueued || failure_; });
     rethrow_failure();
     tasks_.push_back(std::move(task));
   }
@@ -50,6 +51,7 @@ void SerialWorker::run() {
     tasks_.pop_front();
     busy_ = true;
     lock.unlock();
+    room_.notify_all();
     std::exception_ptr failed;
     try {
       task();
@@ -60,7 +62,10 @@ void SerialWorker::run() {
     lock.lock();
     busy_ = false;
     if (failed && !failure_) failure_ = failed;
-    if (failure_) tasks_.clear();  // later tasks build on the failed one (same file)
+    if (failure_) {
+      tasks_.clear();  // later tasks build on the failed one (same file)
+      room_.notify_all();
+    }
     if (tasks_.empty()) idle_.notify_all();
   }
 }

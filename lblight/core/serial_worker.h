@@ -22,9 +22,12 @@ class SerialWorker {
   // is about to be removed).
   ~SerialWorker();
 
-  // Queues `task`; inline mode runs it now. Rethrows a failure of an earlier task, so a bake stops
-  // at its next solution instead of solving on for nothing.
+  // Queues `task`; inline mode runs it now. Waits while kMaxQueued tasks are waiting (each holds
+  // a solution's totals: a solver faster than its output must not fill the host's memory).
+  // Rethrows a failure of an earlier task, so a bake stops at its next solution instead of
+  // solving on for nothing.
   void post(std::function<void()> task);
+  static constexpr std::size_t kMaxQueued = 4;
   // Waits until every posted task has run; rethrows the first failure.
   void wait();
   bool background() const { return background_; }
@@ -35,7 +38,7 @@ class SerialWorker {
 
   const bool background_;
   std::mutex mutex_;
-  std::condition_variable wake_, idle_;
+  std::condition_variable wake_, idle_, room_;
   std::deque<std::function<void()>> tasks_;
   bool busy_ = false, stopping_ = false;
   std::exception_ptr failure_;

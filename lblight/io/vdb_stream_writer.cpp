@@ -120,7 +120,11 @@ struct VdbStreamWriter::Impl {
   bool closed = false;
 
   // Parallel mode: grids compressing on TBB threads, and those done but waiting for an earlier one.
+  // Tasks are queued and waited for inside one arena: a thread waiting on a task_group runs only
+  // tasks it can reach, and close() may come from another thread than add() (with one CPU TBB
+  // has no worker threads, so tasks out of reach would never run).
   int parallel = 1;
+  tbb::task_arena arena;
   tbb::task_group group;
   std::mutex mutex;  // guards everything below and the stream
   int in_flight = 0, written = 0;
@@ -147,9 +151,13 @@ struct VdbStreamWriter::Impl {
     }
   }
   void wait_for_grids() {
-    group.wait();
+    arena.execute([this] { group.wait(); });
     std::lock_guard<std::mutex> lock(mutex);
     if (failure) std::rethrow_exception(failure);
+  }
+  void fail(std::exception_ptr e) {  // sticky: later grids would land at wrong places
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!failure) failure = e;
   }
 };
 
@@ -177,13 +185,17 @@ VdbStreamWriter::VdbStreamWriter(const std::filesystem::path& file, const DenseF
 
 VdbStreamWriter::~VdbStreamWriter() {
   try {
-    impl_->group.wait();  // tasks refer to impl_
+    impl_->arena.execute([this] { impl_->group.wait(); });  // tasks refer to impl_
   } catch (...) {
   }
 }
 
 void VdbStreamWriter::add(const DenseGridOut& spec) {
   Impl& s = *impl_;
+  {
+    std::lock_guard<std::mutex> lock(s.mutex);
+    if (s.failure) std::rethrow_exception(s.failure);
+  }
   if (s.closed || s.added >= s.announced)
     throw Error(ErrorCategory::Internal, "VDB writer: more grids than announced for " + s.file.string());
   if (!s.names.insert(spec.name).second)
@@ -196,11 +208,16 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
   const int seq = s.added++;
   if (s.parallel == 1) {
     try {
-      s.archive.add(s.os, g);
-    } catch (const openvdb::Exception& e) {
-      throw_io(std::string("cannot write VDB file: ") + e.what(), s.where());
+      try {
+        s.archive.add(s.os, g);
+      } catch (const openvdb::Exception& e) {
+        throw_io(std::string("cannot write VDB file: ") + e.what(), s.where());
+      }
+      s.check_stream(spec.name);
+    } catch (...) {
+      s.fail(std::current_exception());
+      throw;
     }
-    s.check_stream(spec.name);
     ++s.written;
     return;
   }
@@ -208,7 +225,6 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
   bool here = false;
   {
     std::lock_guard<std::mutex> lock(s.mutex);
-    if (s.failure) std::rethrow_exception(s.failure);
     here = s.in_flight >= s.parallel;
     if (!here) ++s.in_flight;
   }
@@ -235,11 +251,16 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
     if (!here) --s.in_flight;
   };
   if (here) {
-    compress();
+    tbb::this_task_arena::isolate(compress);  // not the queued grids: add() returns after this one
     std::lock_guard<std::mutex> lock(s.mutex);
     if (s.failure) std::rethrow_exception(s.failure);
   } else {
-    s.group.run(std::move(compress));
+    try {
+      s.arena.execute([&] { s.group.run(std::move(compress)); });
+    } catch (...) {  // not queued: the file cannot be completed
+      s.fail(std::current_exception());
+      throw;
+    }
   }
 }
 
@@ -247,6 +268,9 @@ void VdbStreamWriter::close() {
   Impl& s = *impl_;
   if (s.closed) return;
   s.wait_for_grids();
+  if (s.written != s.added)
+    throw Error(ErrorCategory::Internal, "VDB writer: " + std::to_string(s.added - s.written) +
+                                             " grid(s) not appended to " + s.file.string());
   if (s.added != s.announced)
     throw Error(ErrorCategory::Internal, "VDB writer: " + std::to_string(s.added) + " of " +
                                              std::to_string(s.announced) + " announced grids written to " +
