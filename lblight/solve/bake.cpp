@@ -232,6 +232,8 @@ class AmbientSum {
 
 // An uneven last batch would step as often as the others with a fraction of the device busy.
 int balanced_batch(int total, int capacity, int channels) {
+  capacity = std::max(1, capacity);
+  channels = std::max(1, channels);
   if (total <= capacity) return std::max(1, total);
   const int batches = (total + capacity - 1) / capacity;
   int even = (total + batches - 1) / batches;
@@ -245,7 +247,7 @@ int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOption
   const std::size_t per_system = backend.bytes_per_system(d, opt.precision);
   const std::size_t fixed = backend.bytes_per_lattice(d);
   const std::size_t avail = backend.available_bytes();
-  const int channels = static_cast<int>(mp.channels.size());
+  const int channels = std::max(1, static_cast<int>(mp.channels.size()));
   const int total = static_cast<int>(mp.systems());
   const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
   int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, opt.precision, total);
