@@ -121,17 +121,19 @@ int run_bench(const BenchArgs& a) {
         for (int i = 0; i < 19; ++i) batch[static_cast<std::size_t>(s)].boundary[i] = b[i];
       }
       solver->reset(batch);
+      std::vector<Residual> r;
       solver->step(2);  // warm up
+      solver->measure(r);  // measure() waits for an asynchronous backend's steps
       int steps = a.steps;
       if (steps <= 0) {  // about two seconds of work
         const auto t0 = std::chrono::steady_clock::now();
         solver->step(2);
+        solver->measure(r);
         const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / 2;
         steps = std::max(4, std::min(2000, static_cast<int>(2.0 / std::max(dt, 1e-6))));
       }
       const auto t0 = std::chrono::steady_clock::now();
       solver->step(steps);
-      std::vector<Residual> r;
       solver->measure(r);  // also synchronises asynchronous backends
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       const double updates = static_cast<double>(lat.dims.interior_count()) * steps * a.systems;

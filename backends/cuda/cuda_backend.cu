@@ -51,10 +51,12 @@ struct DeviceTables {
 constexpr int kStepBlock = 128;
 constexpr int kReduceBlock = 256;
 
+// Threads start at x = 0 (x = 0 idles) so that a warp's loads begin on a row's first element,
+// aligned when nx is a multiple of 32 (4 sectors per warp and direction instead of 5).
 template <typename T>
 __global__ void step_kernel(BatchArgs<T> a) {
-  const int x = 1 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
-  if (x >= a.d.nx - 1) return;
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  if (x < 1 || x >= a.d.nx - 1) return;
   step_node(a, DeviceTables{}, x, 1 + static_cast<int>(blockIdx.y), 1 + static_cast<int>(blockIdx.z));
 }
 
@@ -246,6 +248,11 @@ dim3 interior_grid(const Dims& d, int block) {
   return dim3(static_cast<unsigned>((d.nx - 2 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
               static_cast<unsigned>(d.nz - 2));
 }
+// step_kernel's grid: whole rows from x = 0, interior rows in y and z.
+dim3 step_grid(const Dims& d, int block) {
+  return dim3(static_cast<unsigned>((d.nx - 1 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
+              static_cast<unsigned>(d.nz - 2));
+}
 
 template <typename T>
 class Solver final : public LatticeSolver {
@@ -305,7 +312,7 @@ class Solver final : public LatticeSolver {
   void step(int steps) override {
     bind();
     for (int t = 0; t < steps; ++t) {
-      step_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(args());
+      step_kernel<T><<<step_grid(d_, kStepBlock), kStepBlock>>>(args());
       GPU_CHECK(gpuGetLastError());
       level_ = 1 - level_;
       if (inflow_pending_) {
@@ -418,7 +425,7 @@ class Solver final : public LatticeSolver {
     a.systems = 1;
     a.cur = vec(x);
     a.next = vec(y);
-    step_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(a);
+    step_kernel<T><<<step_grid(d_, kStepBlock), kStepBlock>>>(a);
     GPU_CHECK(gpuGetLastError());
     inflow(vec(y), true, 1);
   }

@@ -62,9 +62,21 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
     LBL_UNROLL
     for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
     const float keep = ((tb.absorb_bits(c) >> k) & 1u) ? 0.0f : 1.0f;
-    collide_node(tb.op(c, static_cast<int>(k)), keep, rho, f, [&](int m, float v) {
+    const auto push = [&](int m, float v) {
       dst[m * a.stride + d3q19::cx(m) + d3q19::cy(m) * sy + d3q19::cz(m) * sz] = Storage<T>::store(v);
-    });
+    };
+    // The operator picked with literal indices: its ~180 coefficients are then read at fixed
+    // addresses (on the GPU, constant-bank operands of the FMAs) instead of through a per-thread
+    // address, which costs a separate load each and serializes in a warp straddling two materials.
+    static_assert(kMaxChannels == 3 && kMaxMaterialsGpu == 2, "one case per channel and material");
+    switch (c * kMaxMaterialsGpu + static_cast<int>(k)) {
+      case 0: collide_node(tb.op(0, 0), keep, rho, f, push); break;
+      case 1: collide_node(tb.op(0, 1), keep, rho, f, push); break;
+      case 2: collide_node(tb.op(1, 0), keep, rho, f, push); break;
+      case 3: collide_node(tb.op(1, 1), keep, rho, f, push); break;
+      case 4: collide_node(tb.op(2, 0), keep, rho, f, push); break;
+      default: collide_node(tb.op(2, 1), keep, rho, f, push); break;
+    }
   }
 }
 
