@@ -42,15 +42,9 @@ class IncrementalArchive : public openvdb::io::Archive {
     os.write(reinterpret_cast<const char*>(&count), sizeof count);
   }
 
-  void add(std::ostream& os, const openvdb::GridBase::ConstPtr& grid) {
-    openvdb::io::GridDescriptor gd(grid->getName(), grid->type(), grid->saveFloatAsHalf());
-    writeGrid(gd, grid, os, /*seekable=*/true);
-    // Mask compression is chosen per grid; the next grid starts from the file's settings.
-    openvdb::io::setDataCompression(os, compression());
-  }
-
-  // The bytes add() would append to a stream positioned at 0, with the stream state begin() sets
-  // up, and the offset of the descriptor's three stream positions in them (see relocate).
+  // The bytes Archive::write appends for `grid`, as if the stream were at position 0, with the
+  // stream state begin() sets up (fresh per grid, as Archive::write restores it between grids),
+  // and the offset of the descriptor's three stream positions in them (see relocate).
   std::string serialize(const openvdb::GridBase::ConstPtr& grid, std::size_t& positions_at) const {
     std::ostringstream os(std::ios::out | std::ios::binary);
     openvdb::io::StreamMetadata::Ptr sm(new openvdb::io::StreamMetadata);
@@ -119,7 +113,7 @@ struct VdbStreamWriter::Impl {
   std::set<std::string> names;
   bool closed = false;
 
-  // Parallel mode: grids compressing on TBB threads, and those done but waiting for an earlier one.
+  // Grids compressing on TBB threads (parallel > 1), and those done but waiting for an earlier one.
   // Tasks are queued and waited for inside one arena: a thread waiting on a task_group runs only
   // tasks it can reach, and close() may come from another thread than add() (with one CPU TBB
   // has no worker threads, so tasks out of reach would never run).
@@ -206,24 +200,10 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
   tbb::this_task_arena::isolate([&] { g = make_grid(s.frame, spec); });
   g->setTransform(s.transform->copy());
   const int seq = s.added++;
-  if (s.parallel == 1) {
-    try {
-      try {
-        s.archive.add(s.os, g);
-      } catch (const openvdb::Exception& e) {
-        throw_io(std::string("cannot write VDB file: ") + e.what(), s.where());
-      }
-      s.check_stream(spec.name);
-    } catch (...) {
-      s.fail(std::current_exception());
-      throw;
-    }
-    ++s.written;
-    return;
-  }
-  // With every slot busy, this thread compresses its grid itself rather than wait idle.
-  bool here = false;
-  {
+  // One grid at a time, or with every slot busy: this thread compresses its grid itself (rather
+  // than wait idle) and add() returns once it is in the file, or queued behind earlier ones.
+  bool here = s.parallel == 1;
+  if (!here) {
     std::lock_guard<std::mutex> lock(s.mutex);
     here = s.in_flight >= s.parallel;
     if (!here) ++s.in_flight;
@@ -232,9 +212,11 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
     Impl::Serialized out;
     std::exception_ptr failure;
     try {
-      out.bytes = s.archive.serialize(g, out.positions_at);
-    } catch (const openvdb::Exception& e) {
-      failure = std::make_exception_ptr(Error(ErrorCategory::Io, "cannot write VDB file " + s.file.string() + ": " + e.what()));
+      try {
+        out.bytes = s.archive.serialize(g, out.positions_at);
+      } catch (const openvdb::Exception& e) {
+        throw_io(std::string("cannot write VDB file: ") + e.what(), s.where());
+      }
     } catch (...) {
       failure = std::current_exception();
     }
