@@ -93,6 +93,7 @@ nlohmann::json lattice_box_json(const ModelPlan& mp) {
   return {{"lblight_lattice_min", mp.lattice_index_min}, {"lblight_lattice_dims", {d.nx, d.ny, d.nz}}};
 }
 DenseFrame dense_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
+LbhFrame lbh_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -153,7 +154,7 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
     const LbhOutputSpec& lbh = plan_.scene->output.lbh;
     if (lbh.enabled) {
       lbh_in.rgb = totals.get();
-      encoded_[slot] = encode_lbh_solution({mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}, lbh_in,
+      encoded_[slot] = encode_lbh_solution(lbh_frame(mp), lbh_in,
                                            {lbh.threshold, lbh.relative, lbh.coefficients});
     }
     if (vdb_) {
@@ -214,8 +215,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   std::vector<LbhEncoded> encoded;
   if (lbh.enabled && !done_.empty()) {
     for (std::size_t i : order) encoded.push_back(std::move(encoded_[i]));
-    const LbhFrame lframe{mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world};
-    write_lbh(dir_.path(lbh_name), lframe, encoded);
+    write_lbh(dir_.path(lbh_name), lbh_frame(mp), encoded);
     model["lbh_file"] = lbh_name;
     double raw = 0, packed = 0, worst_rms = 0;
     std::size_t q8 = 0;
