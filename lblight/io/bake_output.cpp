@@ -94,6 +94,7 @@ nlohmann::json lattice_box_json(const ModelPlan& mp) {
 }
 DenseFrame dense_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 LbhFrame lbh_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
+constexpr int kBackgroundParallelGrids = 4;
 double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -112,7 +113,7 @@ void BakeOutput::start_model(const ModelPlan& mp) {
                                     {"lblight_scene_hash", plan_.scene->hash}};
   // In the background, up to 4 grids compress at once (Blosc is serial per grid and would
   // otherwise fall behind a GPU); inline, the OpenMP solver needs the cores back after each grid.
-  const int parallel_grids = worker_.background() ? 4 : 1;
+  const int parallel_grids = worker_.background() ? kBackgroundParallelGrids : 1;
   vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
                                            static_cast<int>(1 + has_wood + mp.solutions.size()), file_meta,
                                            parallel_grids);
@@ -176,9 +177,15 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   const std::string file_name = mp.spec->name + ".vdb";
   if (vdb_) {
     vdb_->close();
-    spdlog::info("{}: {} grids, {:.1f} MiB, converted and written in {:.2f} s{}", file_name, vdb_->grids_written(),
-                 static_cast<double>(vdb_->bytes_written()) / 1048576.0, output_seconds_,
-                 worker_.background() ? fmt::format(" alongside the solve ({:.2f} s after it)", waited) : std::string());
+    const double mib = static_cast<double>(vdb_->bytes_written()) / 1048576.0;
+    if (worker_.background())  // compression also ran on other threads: its sum is CPU time
+      spdlog::info("{}: {} grids, {:.1f} MiB, written alongside the solve ({:.2f} s after it); output thread busy "
+                   "{:.2f} s, compression {:.2f} s of CPU time (up to {} grids at once)",
+                   file_name, vdb_->grids_written(), mib, waited, output_seconds_, vdb_->compress_seconds(),
+                   kBackgroundParallelGrids);
+    else
+      spdlog::info("{}: {} grids, {:.1f} MiB, converted and written in {:.2f} s (compression {:.2f} s of it)",
+                   file_name, vdb_->grids_written(), mib, output_seconds_, vdb_->compress_seconds());
     vdb_.reset();
   }
 

@@ -1,5 +1,6 @@
 #include "lblight/io/vdb_stream_writer.h"
 
+#include <chrono>
 #include <cstring>
 #include <exception>
 #include <fstream>
@@ -122,6 +123,7 @@ struct VdbStreamWriter::Impl {
   tbb::task_group group;
   std::mutex mutex;  // guards everything below and the stream
   int in_flight = 0, written = 0;
+  double compress_seconds = 0;  // serialising, summed over the threads that did it
   struct Serialized {
     std::string bytes;
     std::size_t positions_at = 0;
@@ -211,6 +213,7 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
   auto compress = [&s, g = openvdb::GridBase::ConstPtr(g), seq, here] {
     Impl::Serialized out;
     std::exception_ptr failure;
+    const auto t0 = std::chrono::steady_clock::now();
     try {
       try {
         out.bytes = s.archive.serialize(g, out.positions_at);
@@ -220,7 +223,9 @@ void VdbStreamWriter::add(const DenseGridOut& spec) {
     } catch (...) {
       failure = std::current_exception();
     }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::lock_guard<std::mutex> lock(s.mutex);
+    s.compress_seconds += seconds;
     try {
       if (!failure) {
         s.done.emplace(seq, std::move(out));
@@ -265,6 +270,11 @@ void VdbStreamWriter::close() {
 std::uint64_t VdbStreamWriter::bytes_written() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->closed ? std::filesystem::file_size(impl_->file) : static_cast<std::uint64_t>(impl_->os.tellp());
+}
+
+double VdbStreamWriter::compress_seconds() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->compress_seconds;
 }
 
 int VdbStreamWriter::grids_written() const {

@@ -41,6 +41,9 @@ class VdbStreamWriter {
 
   std::uint64_t bytes_written() const;
   int grids_written() const;  // appended to the file so far
+  // Time spent compressing (serialising) grids so far, summed over the threads that did it:
+  // with parallel_grids > 1 it is CPU time, not wall time.
+  double compress_seconds() const;
 
  private:
   struct Impl;
