@@ -5,14 +5,18 @@ counted against that floor (light that small is noise in either bake). Needs pyo
 (Debian python3-openvdb) and NumPy.
 
 usage: scripts/compare_bakes.py REFERENCE_DIR OTHER_DIR [--tolerance T]
-Exit 1 when a grid differs by more than T (default 1e-5), 2 on bad input."""
+Exit 1 when a grid differs by more than T (default 1e-5), 2 on bad input, 77 without pyopenvdb."""
 import argparse
 import json
 import os
 import sys
 
-import numpy as np
-import pyopenvdb as vdb
+try:
+    import numpy as np
+    import pyopenvdb as vdb
+except ImportError as e:
+    print(f"compare_bakes.py: skipped, {e} (Debian: apt-get install python3-openvdb)", file=sys.stderr)
+    sys.exit(77)
 
 
 def dense(path, name, lo, dims):
