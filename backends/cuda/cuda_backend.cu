@@ -242,7 +242,13 @@ std::string kernel_image_problem(int device) {
   return name + " cannot run the GPU code of this build (sm_80, sm_90, compute_90 PTX): " + gpuGetErrorString(err);
 }
 
-const void* g_bound_tables_owner = nullptr;  // the solver whose tables are in constant memory
+// Per device (constant memory is per device): the solver whose tables are in its constant memory.
+// One thread drives a solver at a time (bake, bench and tests do).
+const void*& bound_tables_owner(int device) {
+  static std::vector<const void*> owners;
+  if (device >= static_cast<int>(owners.size())) owners.resize(static_cast<std::size_t>(device) + 1, nullptr);
+  return owners[static_cast<std::size_t>(device)];
+}
 
 dim3 interior_grid(const Dims& d, int block) {
   return dim3(static_cast<unsigned>((d.nx - 2 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
@@ -272,6 +278,7 @@ class Solver final : public LatticeSolver {
       absorb_[c] = bits;
     }
     channel_count_ = static_cast<int>(channels.size());
+    GPU_CHECK(gpuGetDevice(&device_));  // the backend's, set by create()
     count_ = d_.count();
     stride_ = gpu_stride(d_);
     density_.allocate(count_);
@@ -287,7 +294,7 @@ class Solver final : public LatticeSolver {
   }
 
   ~Solver() override {
-    if (g_bound_tables_owner == this) g_bound_tables_owner = nullptr;
+    if (bound_tables_owner(device_) == this) bound_tables_owner(device_) = nullptr;
   }
 
   int capacity() const override { return capacity_; }
@@ -497,7 +504,7 @@ class Solver final : public LatticeSolver {
 
   // Puts this solver's tables into constant memory unless they are there already.
   void bind() {
-    if (g_bound_tables_owner == this && bound_batch_ == batch_generation_) return;
+    if (bound_tables_owner(device_) == this && bound_batch_ == batch_generation_) return;
     GPU_CHECK(gpuMemcpyToSymbol(c_ops, ops_, sizeof(ops_)));
     GPU_CHECK(gpuMemcpyToSymbol(c_absorb, absorb_, sizeof(absorb_)));
     int channel[kMaxBatch] = {};
@@ -508,7 +515,7 @@ class Solver final : public LatticeSolver {
     }
     GPU_CHECK(gpuMemcpyToSymbol(c_channel, channel, sizeof(channel)));
     GPU_CHECK(gpuMemcpyToSymbol(c_boundary, boundary, sizeof(boundary)));
-    g_bound_tables_owner = this;
+    bound_tables_owner(device_) = this;
     bound_batch_ = batch_generation_;
   }
 
@@ -517,6 +524,7 @@ class Solver final : public LatticeSolver {
   std::size_t count_ = 0;
   long long stride_ = 0;
   int channel_count_ = 0;
+  int device_ = 0;
   CollisionOp<float> ops_[kMaxChannels][kMaxMaterialsGpu] = {};
   unsigned absorb_[kMaxChannels] = {};
   DeviceBuffer<float> density_;
