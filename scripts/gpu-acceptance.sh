@@ -60,7 +60,7 @@ note "== plant-128: complete 19 x 3 bake, 260 steps, including voxelisation and 
 for run in 1 2 3; do
   timed "$out/bake-gpu-f32.log" "$exe" bake configs/plant-128.json --backend cuda -o "$out/plant-128-gpu"
 done
-grep -h "converted and written" "$out/bake-gpu-f32.log" | tail -n 1 >> "$summary"
+grep -h "tree.vdb:" "$out/bake-gpu-f32.log" | tail -n 1 >> "$summary"
 for run in 1 2; do
   timed "$out/bake-gpu-f16.log" "$exe" bake configs/plant-128.json --backend cuda --precision float16 \
     -o "$out/plant-128-gpu-f16"
@@ -77,6 +77,18 @@ if [ "${SKIP_CPU_REFERENCE:-0}" != 1 ]; then
     done
   else
     note "(python3-openvdb not installed: grids not compared)"
+  fi
+  # The host-side model (docs/performance.md) with this GPU's measured copy bandwidth and 128^3
+  # float32 fraction, to set against the timed bakes above.
+  read -r gbs frac < <(/usr/bin/python3 -c '
+import json, sys
+b = json.load(open(sys.argv[1]))
+r = [r for r in b["runs"] if r["lattice"][0] == 128 and r["precision"] == "float32"][0]
+print(b["copy_bandwidth_gbs"], r["fraction_of_copy_bandwidth"])' "$out/bench.json" 2> /dev/null) || true
+  if [ -n "${gbs:-}" ] && [ -x build/tools/gpu_pipeline_sim/gpu_pipeline_sim ]; then
+    note "simulated device at the measured ${gbs} GB/s x ${frac} (start-up 0.5 s assumed):"
+    build/tools/gpu_pipeline_sim/gpu_pipeline_sim configs/plant-128.json --reference "$out/plant-128-cpu/tree.vdb" \
+      --bandwidth "$gbs" --fraction "$frac" -o "$out/plant-128-sim" 2> "$out/sim.log" | grep wall | tee -a "$summary"
   fi
 fi
 note "== done: $out"

@@ -256,7 +256,7 @@ int main(int argc, char** argv) {
                  "(default: a smooth, noisy stand-in)");
   app.add_option("-o,--output", output, "Output directory");
   app.add_option("--bandwidth", bandwidth_gbs, "Device copy bandwidth, GB/s")->check(CLI::PositiveNumber);
-  app.add_option("--fraction", m.fraction, "Fraction of it the step kernel reaches")->check(CLI::Range(0.01, 1.0));
+  app.add_option("--fraction", m.fraction, "Fraction of it the step kernel reaches")->check(CLI::Range(0.01, 2.0));
   app.add_option("--startup", m.startup_s, "Device start-up, seconds")->check(CLI::Range(0.0, 60.0));
   app.add_option("--host-link", link_gbs, "Device to host copy rate, GB/s")->check(CLI::PositiveNumber);
   app.add_option("--precision", precision, "Storage: float32 or float16")
