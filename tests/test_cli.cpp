@@ -166,3 +166,35 @@ TEST_CASE("Missing files and bad options are invalid input", "[cli]") {
   CHECK(run_cli("bake tiny.json --precision float16 --backend cpu", tmp.path()).exit_code == 2);
   CHECK_FALSE(fs::exists(tmp / "tiny-bake"));
 }
+
+TEST_CASE("compare: identical bakes pass, a different precision fails at tolerance 0, mismatches are invalid",
+          "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "tiny.json", kTinyScene);
+  REQUIRE(run_cli("bake tiny.json -o a --backend cpu -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("bake tiny.json -o b --backend cpu -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("bake tiny.json -o f64 --backend cpu --precision float64 -q", tmp.path()).exit_code == 0);
+
+  const CliResult same = run_cli("compare a b --tolerance 0", tmp.path());
+  INFO(same.out << same.err);
+  CHECK(same.exit_code == 0);
+  CHECK(same.out.find("cloud B05: max relative difference 0\n") != std::string::npos);
+  CHECK(same.out.find("largest over 3 grid(s): 0 (within 0)") != std::string::npos);
+
+  // float64 storage rounds differently: a small, nonzero difference
+  const CliResult strict = run_cli("compare a f64 --tolerance 0", tmp.path());
+  INFO(strict.out);
+  CHECK(strict.exit_code == 1);
+  CHECK(strict.out.find("ABOVE") != std::string::npos);
+  CHECK(run_cli("compare a f64 --tolerance 1e-4", tmp.path()).exit_code == 0);
+
+  CHECK(run_cli("compare a missing", tmp.path()).exit_code == 2);
+  // another lattice (other resolution) does not match up
+  std::string other = kTinyScene;
+  other.replace(other.find("\"resolution\": 10"), 16, "\"resolution\": 12");
+  write_text(tmp / "other.json", other);
+  REQUIRE(run_cli("bake other.json -o c --backend cpu -q", tmp.path()).exit_code == 0);
+  const CliResult lattice = run_cli("compare a c", tmp.path());
+  CHECK(lattice.exit_code == 2);
+  CHECK(lattice.err.find("another lattice") != std::string::npos);
+}

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
       cli::add_voxelize_command(app, global),
       cli::add_compress_command(app, global),
       cli::add_decompress_command(app, global),
+      cli::add_compare_command(app, global),
   };
 
   try {

@@ -1,0 +1,115 @@
+// lblight compare: two bakes of the same scene, grid by grid (GPU against CPU, float16 against
+// float32, a new build against a stored regression result).
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "apps/lblight/commands.h"
+#include "lblight/core/error.h"
+#include "lblight/io/vdb_io.h"
+
+namespace fs = std::filesystem;
+
+namespace lblight::cli {
+namespace {
+
+struct CompareArgs {
+  std::string reference, other;
+  double tolerance = 1e-5;
+};
+
+nlohmann::json read_manifest(const fs::path& dir) {
+  const fs::path file = dir / "manifest.json";
+  std::ifstream in(file);
+  if (!in) throw_invalid("not an lblight output directory (no manifest.json)", {dir.string(), {}, {}});
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw_invalid(std::string("cannot parse: ") + e.what(), {file.string(), {}, {}});
+  }
+}
+
+// The largest |b - a| / |a| over every value, with |a| below 1e-6 of the grid's largest counted
+// as that floor: light that faint is rounding noise in either bake.
+double max_relative_difference(const DenseGridIn& a, const DenseGridIn& b) {
+  float largest = 0.0f;
+  for (const auto& ch : a.values)
+    for (float v : ch) largest = std::max(largest, std::fabs(v));
+  const double floor = std::max(1e-30, 1e-6 * static_cast<double>(largest));
+  double worst = 0.0;
+  for (int c = 0; c < 3; ++c) {
+    const auto& va = a.values[static_cast<std::size_t>(c)];
+    const auto& vb = b.values[static_cast<std::size_t>(c)];
+    for (std::size_t i = 0; i < va.size(); ++i) {
+      const double d = std::fabs(static_cast<double>(vb[i]) - va[i]) / std::max(std::fabs(static_cast<double>(va[i])), floor);
+      if (!(d <= worst)) worst = d;  // NaN wins
+    }
+  }
+  return worst;
+}
+
+int compare_outputs(const CompareArgs& a) {
+  const fs::path ref_dir = a.reference, other_dir = a.other;
+  const nlohmann::json ref = read_manifest(ref_dir), other = read_manifest(other_dir);
+  double worst = 0.0;
+  int grids = 0;
+  for (const auto& model : ref.at("models")) {
+    const std::string name = model.at("name");
+    const auto it = std::find_if(other.at("models").begin(), other.at("models").end(),
+                                 [&](const nlohmann::json& m) { return m.at("name") == name; });
+    if (it == other.at("models").end())
+      throw_invalid("model '" + name + "' is not in this output", {other_dir.string(), {}, {}});
+    if (it->at("lattice").at("dims") != model.at("lattice").at("dims") ||
+        it->at("lattice").at("index_min") != model.at("lattice").at("index_min"))
+      throw_invalid("model '" + name + "' is on another lattice than in " + ref_dir.string(),
+                    {other_dir.string(), {}, {}});
+    if (model.at("file").is_null() || it->at("file").is_null())
+      throw_invalid("model '" + name + "' has no .vdb in one of the outputs", {other_dir.string(), {}, {}});
+    const fs::path fa = ref_dir / model.at("file").get<std::string>();
+    const fs::path fb = other_dir / it->at("file").get<std::string>();
+    for (const auto& s : model.at("solutions")) {
+      const std::string grid = s.at("grid");
+      const double d = max_relative_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid));
+      std::printf("%s %s: max relative difference %.3g\n", name.c_str(), grid.c_str(), d);
+      if (!(d <= worst)) worst = d;
+      ++grids;
+    }
+  }
+  const bool ok = worst <= a.tolerance;
+  std::printf("largest over %d grid(s): %.3g (%s %g)\n", grids, worst, ok ? "within" : "ABOVE", a.tolerance);
+  return ok ? 0 : 1;
+}
+
+int run_compare(const CompareArgs& a) {
+  try {
+    return compare_outputs(a);
+  } catch (const nlohmann::json::exception& e) {  // a manifest without the fields a bake writes
+    throw_invalid(std::string("manifest.json is not an lblight bake manifest: ") + e.what(),
+                  {a.reference + " or " + a.other, {}, {}});
+  }
+}
+
+}  // namespace
+
+Command add_compare_command(CLI::App& app, const GlobalOptions&) {
+  auto args = std::make_shared<CompareArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "compare",
+      "Compare the light grids of two bakes of the same scene (every model and solution of the reference): per grid "
+      "the largest relative difference, with values below 1e-6 of the grid's largest compared against that floor. "
+      "Exit 0 when every grid is within --tolerance, 1 when one is not, 2 when the outputs do not match up.");
+  cmd->add_option("reference", args->reference, "Reference output directory (with manifest.json)")->required();
+  cmd->add_option("other", args->other, "Output directory to compare against it")->required();
+  cmd->add_option("--tolerance", args->tolerance, "Largest relative difference allowed (default 1e-5)")
+      ->check(CLI::Range(0.0, 1e30));
+  return {cmd, [args] { return run_compare(*args); }};
+}
+
+}  // namespace lblight::cli
