@@ -7,6 +7,8 @@
 # Exit 77 (skipped) when no GPU is usable.
 #   usage: scripts/gpu-acceptance.sh [OUTDIR]     (default: out/gpu-acceptance)
 #   SKIP_CPU_REFERENCE=1 leaves out the CPU bake and the comparison (minutes on few cores).
+#   LBLIGHT_BUNDLE=DIR uses the prebuilt programs of an unpacked scripts/device-bundle.sh archive
+#   instead of building (for GPU machines without Debian's packages).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-out/gpu-acceptance}"
@@ -33,20 +35,31 @@ note "GPU: $(nvidia-smi --query-gpu=name,memory.total,driver_version,clocks.max.
 note "CPU: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
 note "commit: $(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
 
-note "== build"
-if ! timed "$out/build.log" cmake -S . -B build -DCMAKE_BUILD_TYPE=Release ||
-   ! timed "$out/build.log" cmake --build build -j"$(nproc)"; then
-  note "build failed: $out/build.log"
-  exit 1
+if [ -n "${LBLIGHT_BUNDLE:-}" ]; then
+  note "== prebuilt bundle $LBLIGHT_BUNDLE (commit $(cat "$LBLIGHT_BUNDLE/COMMIT" 2> /dev/null))"
+  exe="$LBLIGHT_BUNDLE/bin/lblight"
+  gpu_tests="$LBLIGHT_BUNDLE/bin/lblight_gpu_tests"
+  sim="$LBLIGHT_BUNDLE/bin/gpu_pipeline_sim"
+  export LBLIGHT_EXE="$exe"  # the GPU tests run this lblight, not the path they were built with
+else
+  note "== build"
+  if ! timed "$out/build.log" cmake -S . -B build -DCMAKE_BUILD_TYPE=Release ||
+     ! timed "$out/build.log" cmake --build build -j"$(nproc)"; then
+    note "build failed: $out/build.log"
+    exit 1
+  fi
+  [ -f build/backends/cuda/liblblight_cuda.a ] || note "warning: the CUDA backend was not built (nvcc not found?)"
+  exe=build/lblight
+  gpu_tests=build/tests/lblight_gpu_tests
+  sim=build/tools/gpu_pipeline_sim/gpu_pipeline_sim
 fi
-[ -f build/backends/cuda/liblblight_cuda.a ] || note "warning: the CUDA backend was not built (nvcc not found?)"
-exe=build/lblight
+"$exe" --version > /dev/null || { note "cannot run $exe"; exit 1; }
 
 note "== GPU conformance (CUDA vs OpenMP to 1e-5, determinism, float16 error, bake grids)"
-timed "$out/gpu_conformance.log" ctest --test-dir build -R gpu_conformance --output-on-failure -V
-if command -v compute-sanitizer > /dev/null && [ -x build/tests/lblight_gpu_tests ]; then
-  timed "$out/memcheck.log" compute-sanitizer --tool memcheck --error-exitcode 3 build/tests/lblight_gpu_tests
-  timed "$out/racecheck.log" compute-sanitizer --tool racecheck --error-exitcode 3 build/tests/lblight_gpu_tests
+timed "$out/gpu_conformance.log" "$gpu_tests"
+if command -v compute-sanitizer > /dev/null && [ -x "$gpu_tests" ]; then
+  timed "$out/memcheck.log" compute-sanitizer --tool memcheck --error-exitcode 3 "$gpu_tests"
+  timed "$out/racecheck.log" compute-sanitizer --tool racecheck --error-exitcode 3 "$gpu_tests"
 fi
 
 note "== bench (updates/s and fraction of the copy bandwidth measured in the same run)"
@@ -76,14 +89,14 @@ if [ "${SKIP_CPU_REFERENCE:-0}" != 1 ]; then
   done
   # The host-side model (docs/performance.md) with this GPU's measured copy bandwidth and 128^3
   # float32 fraction, to set against the timed bakes above.
-  read -r gbs frac < <(/usr/bin/python3 -c '
+  read -r gbs frac < <(python3 -c '
 import json, sys
 b = json.load(open(sys.argv[1]))
 r = [r for r in b["runs"] if r["lattice"][0] == 128 and r["precision"] == "float32"][0]
 print(b["copy_bandwidth_gbs"], r["fraction_of_copy_bandwidth"])' "$out/bench.json" 2> /dev/null) || true
-  if [ -n "${gbs:-}" ] && [ -x build/tools/gpu_pipeline_sim/gpu_pipeline_sim ]; then
+  if [ -n "${gbs:-}" ] && [ -x "$sim" ]; then
     note "simulated device at the measured ${gbs} GB/s x ${frac} (start-up 0.5 s assumed):"
-    build/tools/gpu_pipeline_sim/gpu_pipeline_sim configs/plant-128.json --reference "$out/plant-128-cpu/tree.vdb" \
+    "$sim" configs/plant-128.json --reference "$out/plant-128-cpu/tree.vdb" \
       --bandwidth "$gbs" --fraction "$frac" -o "$out/plant-128-sim" 2> "$out/sim.log" | grep wall | tee -a "$summary"
   fi
 fi

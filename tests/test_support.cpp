@@ -234,9 +234,17 @@ TempDir::~TempDir() {
   std::filesystem::remove_all(path_, ec);
 }
 
+// The lblight under test: $LBLIGHT_EXE when set (a relocated build, such as the bundle
+// scripts/device-bundle.sh makes for GPU machines without the Debian packages), else the one built
+// alongside these tests.
+std::string lblight_exe() {
+  const char* env = std::getenv("LBLIGHT_EXE");
+  return env && *env ? std::string(env) : std::string(LBLIGHT_EXE);
+}
+
 CliResult run_cli(const std::string& args, const std::filesystem::path& cwd) {
   TempDir io;
-  const std::string cmd = (cwd.empty() ? "" : "cd '" + cwd.string() + "' && ") + std::string("'") + LBLIGHT_EXE +
+  const std::string cmd = (cwd.empty() ? "" : "cd '" + cwd.string() + "' && ") + std::string("'") + lblight_exe() +
                           "' " + args + " >'" + (io / "out").string() + "' 2>'" + (io / "err").string() + "'";
   const int status = std::system(cmd.c_str());
   CliResult r;
