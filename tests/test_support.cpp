@@ -216,13 +216,6 @@ std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeomet
   return t;
 }
 
-double max_relative_difference(const std::vector<double>& a, const std::vector<double>& b, double floor) {
-  double worst = 0;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    worst = std::max(worst, std::fabs(a[i] - b[i]) / std::max(std::fabs(a[i]), floor));
-  return worst;
-}
-
 TempDir::TempDir() {
   std::string tmpl = (std::filesystem::temp_directory_path() / "lblight-test-XXXXXX").string();
   if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
@@ -264,15 +257,6 @@ std::string read_text(const std::filesystem::path& file) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
-}
-
-double max_relative_difference(const std::vector<double>& a, const std::vector<float>& b, double floor) {
-  double worst = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    const double denom = std::max(std::fabs(a[i]), floor);
-    worst = std::max(worst, std::fabs(a[i] - static_cast<double>(b[i])) / denom);
-  }
-  return worst;
 }
 
 }  // namespace lblight::test

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/relative_gap.h"
 #include "lblight/solve/bake.h"
 #include "lblight/solve/plan.h"
 #include "lblight/lattice/omega.h"
@@ -71,7 +72,7 @@ std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g
 // The same in double from the raw state (for float64 runs, whose totals read_totals rounds).
 std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
                                      const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps);
-double max_relative_difference(const std::vector<double>& a, const std::vector<double>& b, double floor = 1e-30);
+// max_relative_difference(ref, got, floor): lblight/core/relative_gap.h.
 
 class TempDir {
  public:
@@ -93,8 +94,6 @@ CliResult run_cli(const std::string& args, const std::filesystem::path& cwd = {}
 
 void write_text(const std::filesystem::path& file, const std::string& text);
 std::string read_text(const std::filesystem::path& file);
-
-double max_relative_difference(const std::vector<double>& a, const std::vector<float>& b, double floor = 1e-30);
 
 // Bakes the first model of `scene` on the OpenMP backend through a full BakeOutput into `out_dir`
 // (grids, .lbh when asked, manifest), keeping each solution's result as it was before the

@@ -13,6 +13,7 @@
 
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
+#include "lblight/core/relative_gap.h"
 #include "lblight/io/vdb_io.h"
 
 namespace fs = std::filesystem;
@@ -36,21 +37,17 @@ nlohmann::json read_manifest(const fs::path& dir) {
   }
 }
 
-// The largest |b - a| / |a| over every value, with |a| below 1e-6 of the grid's largest counted
-// as that floor: light that faint is rounding noise in either bake.
-double max_relative_difference(const DenseGridIn& a, const DenseGridIn& b) {
+// Per grid, each value's difference relative to the reference value; values below 1e-6 of the
+// grid's largest are measured against that floor: light that faint is rounding noise in either bake.
+double grid_difference(const DenseGridIn& ref, const DenseGridIn& got) {
   float largest = 0.0f;
-  for (const auto& ch : a.values)
+  for (const auto& ch : ref.values)
     for (float v : ch) largest = std::max(largest, std::fabs(v));
   const double floor = std::max(1e-30, 1e-6 * static_cast<double>(largest));
   double worst = 0.0;
-  for (int c = 0; c < 3; ++c) {
-    const auto& va = a.values[static_cast<std::size_t>(c)];
-    const auto& vb = b.values[static_cast<std::size_t>(c)];
-    for (std::size_t i = 0; i < va.size(); ++i) {
-      const double d = std::fabs(static_cast<double>(vb[i]) - va[i]) / std::max(std::fabs(static_cast<double>(va[i])), floor);
-      if (!(d <= worst)) worst = d;  // NaN wins
-    }
+  for (std::size_t c = 0; c < ref.values.size(); ++c) {
+    const double d = max_relative_difference(ref.values[c], got.values[c], floor);
+    if (!(d <= worst)) worst = d;  // NaN wins
   }
   return worst;
 }
@@ -76,7 +73,7 @@ int compare_outputs(const CompareArgs& a) {
     const fs::path fb = other_dir / it->at("file").get<std::string>();
     for (const auto& s : model.at("solutions")) {
       const std::string grid = s.at("grid");
-      const double d = max_relative_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid));
+      const double d = grid_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid));
       std::printf("%s %s: max relative difference %.3g\n", name.c_str(), grid.c_str(), d);
       if (!(d <= worst)) worst = d;
       ++grids;

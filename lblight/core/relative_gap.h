@@ -1,6 +1,7 @@
 // How far an array of totals lies from a reference: the relative L2 distance
 // ||got - ref|| / ||ref|| and the relative max distance max |got - ref| / max |ref|, summed in
 // double; 0 when the reference is all zero. Used to report storage precisions against float32.
+// And the pointwise form, max |got - ref| / |ref|, for comparing bakes and in tests.
 #pragma once
 
 #include <algorithm>
@@ -25,6 +26,20 @@ RelativeGap relative_gap(const std::vector<Got>& got, const std::vector<Ref>& re
     ref_max = std::max(ref_max, std::fabs(static_cast<double>(ref[i])));
   }
   return {ref_sq > 0 ? std::sqrt(diff_sq / ref_sq) : 0.0, ref_max > 0 ? diff_max / ref_max : 0.0};
+}
+
+// The largest |got_i - ref_i| / max(|ref_i|, floor): each value's difference relative to the
+// reference value, with values below `floor` measured against the floor. NaN in either makes it
+// NaN (a comparison that skipped NaN would pass a broken result).
+template <typename Ref, typename Got>
+double max_relative_difference(const std::vector<Ref>& ref, const std::vector<Got>& got, double floor = 1e-30) {
+  double worst = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    const double r = static_cast<double>(ref[i]);
+    const double d = std::fabs(static_cast<double>(got[i]) - r) / std::max(std::fabs(r), floor);
+    if (!(d <= worst)) worst = d;
+  }
+  return worst;
 }
 
 }  // namespace lblight
