@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "backends/cuda/cuda_backend.h"
+#include "lblight/core/relative_gap.h"
 #include "lblight/lattice/sun.h"
 #include "tests/test_support.h"
 
@@ -29,13 +30,9 @@ std::vector<std::vector<float>> run(const Backend& b, const LatticeGeometry& g, 
   return out;
 }
 
+// Relative to max(|want|, 1e-3 max |want|), as tests/test_transport.cpp; NaN fails.
 double max_rel(const std::vector<float>& want, const std::vector<float>& got) {
-  float peak = 0;
-  for (float v : want) peak = std::max(peak, std::fabs(v));
-  double worst = 0;
-  for (std::size_t i = 0; i < want.size(); ++i)
-    worst = std::max(worst, std::fabs(double(want[i]) - got[i]) / std::max<double>(std::fabs(want[i]), 1e-3 * peak));
-  return worst;
+  return max_relative_difference(want, got, 1e-3 * peak_magnitude(want));
 }
 
 const std::vector<ChannelMaterials>& leaf_channels() {
@@ -62,6 +59,15 @@ TEST_CASE("CUDA matches OpenMP to 1e-5 in float32 (batch of solutions and channe
   // one system at a time gives the same answer as the batch
   const auto single = run(*cuda, g, leaf_channels(), {batch[7]}, 90);
   CHECK(single[0] == got[7]);
+}
+
+TEST_CASE("The CUDA backend rejects a lattice geometry that breaks the contract, naming the fault", "[gpu]") {
+  auto cuda = make_cuda_backend(0);
+  for (const auto& b : broken_geometries()) {
+    INFO(b.fault);
+    CHECK_THROWS_WITH(cuda->create(b.g, leaf_channels(), {Precision::Float32, 1}),
+                      Catch::Contains("cuda backend") && Catch::Contains(b.expect));
+  }
 }
 
 TEST_CASE("CUDA results are deterministic", "[gpu]") {

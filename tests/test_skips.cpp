@@ -7,6 +7,7 @@
 #include <map>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/relative_gap.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/solve/bake.h"
@@ -80,12 +81,10 @@ std::string scene_text(const std::string& lighting, const std::string& solver, c
          model_extra + R"(}], "lighting": )" + lighting + R"(, "solver": )" + solver + "}";
 }
 
+// Difference relative to a's peak (values in deep shadow are not compared relatively).
 double max_rel(const std::vector<float>& a, const std::vector<float>& b) {
   REQUIRE(a.size() == b.size());
-  double worst = 0, peak = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) peak = std::max(peak, static_cast<double>(std::fabs(a[i])));
-  for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::fabs(static_cast<double>(a[i]) - b[i]) / peak);
-  return worst;
+  return max_relative_difference(a, b, peak_magnitude(a));
 }
 
 }  // namespace

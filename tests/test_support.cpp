@@ -150,6 +150,30 @@ ChannelMaterials channel(const OpticalParams& medium, bool absorbs, const Optica
   return ch;
 }
 
+std::vector<BrokenGeometry> broken_geometries() {
+  const Dims d{6, 5, 7};
+  const LatticeGeometry ok = random_lattice(d, 0.9f, 0.3, 4, 0.1f);
+  std::vector<BrokenGeometry> out;
+  const auto add = [&](const std::string& fault, const std::string& expect, auto&& edit) {
+    out.push_back({fault, expect, ok});
+    edit(out.back().g);
+  };
+  add("material byte 2 of 2 materials", "material 2 at node (2, 3, 4)",
+      [&](LatticeGeometry& g) { g.material[d.index(2, 3, 4)] = 2; });
+  add("wood byte with one material", "allowed below 1", [&](LatticeGeometry& g) {
+    g.material_count = 1;
+    for (auto& m : g.material) m = 0;
+    g.material[d.index(1, 1, 1)] = 1;
+  });
+  add("short density array", "densities", [&](LatticeGeometry& g) { g.density.pop_back(); });
+  add("short material array", "materials", [&](LatticeGeometry& g) { g.material.resize(3); });
+  add("NaN density", "density nan", [&](LatticeGeometry& g) { g.density[d.index(3, 2, 2)] = std::nanf(""); });
+  add("negative density", "density -", [&](LatticeGeometry& g) { g.density[d.index(3, 2, 2)] = -0.5f; });
+  add("density on the boundary", "on the boundary", [&](LatticeGeometry& g) { g.density[d.index(0, 2, 2)] = 0.5f; });
+  add("material_count 0", "material_count 0", [&](LatticeGeometry& g) { g.material_count = 0; });
+  return out;
+}
+
 SystemSpec system_for(int channel, const std::array<double, 19>& boundary) {
   SystemSpec s;
   s.channel = channel;

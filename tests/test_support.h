@@ -63,6 +63,14 @@ ChannelMaterials channel(const OpticalParams& medium, bool absorbs,
                          const OpticalParams& wood = {0.1, 0.9, -1.0}, bool wood_absorbs = false);
 SystemSpec system_for(int channel, const std::array<double, 19>& boundary);
 
+// Geometries that break LatticeGeometry's contract, one fault each, with a word the backend's
+// error must contain (see check_geometry in lblight/backend/backend.h).
+struct BrokenGeometry {
+  std::string fault, expect;
+  LatticeGeometry g;
+};
+std::vector<BrokenGeometry> broken_geometries();
+
 std::unique_ptr<Backend> cpu_backend(int threads = 0);
 
 // Runs `steps` steps and returns the totals of one system (after a measure()).

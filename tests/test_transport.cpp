@@ -153,6 +153,16 @@ TEST_CASE("Mass is conserved away from the boundary and lost only through it", "
   CHECK(mass() < 0.99 * m0);
 }
 
+TEST_CASE("The CPU backend rejects a lattice geometry that breaks the contract, naming the fault", "[transport]") {
+  const auto cpu = cpu_backend(1);
+  const auto ch = channel({0.1, 0.8, 0.6}, true, {0.1, 0.8, -1.0}, false);
+  for (const auto& b : broken_geometries()) {
+    INFO(b.fault);
+    CHECK_THROWS_WITH(cpu->create(b.g, {ch}, {Precision::Float32, 1}),
+                      Catch::Contains("cpu backend") && Catch::Contains(b.expect));
+  }
+}
+
 TEST_CASE("Results do not depend on the thread count", "[transport]") {
   const LatticeGeometry g = random_lattice({23, 17, 19}, 0.9f, 0.2, 3);
   const auto ch = channel({0.1, 0.8, 0.6}, true);

@@ -135,11 +135,10 @@ class CpuLatticeSolver final : public LatticeSolver {
         stores_(stores),
         flush_denormals_(flush_denormals) {
     if (d_.nx < 3 || d_.ny < 3 || d_.nz < 3) throw_invalid("lattice must have at least 3 nodes per edge");
+    check_geometry(g, "cpu");
     density_ = g.density;
     material_ = g.material;
     material_count_ = g.material_count;
-    if (material_count_ < 1 || material_count_ > 2)
-      throw Error(ErrorCategory::Unavailable, "the cpu backend handles up to 2 materials per lattice (medium, wood)");
     wood_.resize(n_);
     for (std::size_t i = 0; i < n_; ++i) wood_[i] = material_[i] == 1 ? 1.0f : 0.0f;
     for (const auto& ch : channels) {
@@ -408,7 +407,6 @@ class CpuLatticeSolver final : public LatticeSolver {
         const std::size_t r = static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1);
         for (int x = 1; x < d_.nx - 1; ++x) {
           const std::size_t i = d_.index(x, y, z);
-          if (material_[i] >= kMaxMaterials) throw std::logic_error("material index out of range");
           row_mask_[r] |= static_cast<std::uint8_t>(1u << material_[i]);
           if (density_[i] != 0.0f) row_empty_[r] = 0;
         }

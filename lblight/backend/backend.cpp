@@ -1,5 +1,8 @@
 #include "lblight/backend/backend.h"
 
+#include <cmath>
+#include <stdexcept>
+
 namespace lblight {
 
 const char* to_string(Precision p) {
@@ -9,6 +12,35 @@ const char* to_string(Precision p) {
     case Precision::Float16: return "float16";
   }
   return "?";
+}
+
+void check_geometry(const LatticeGeometry& g, const char* backend) {
+  const auto fail = [&](const std::string& what) {
+    throw std::logic_error(std::string(backend) + " backend: lattice geometry " + what);
+  };
+  const Dims& d = g.dims;
+  if (d.nx < 3 || d.ny < 3 || d.nz < 3)
+    fail("needs at least 3 nodes per edge, got " + std::to_string(d.nx) + " x " + std::to_string(d.ny) + " x " +
+         std::to_string(d.nz));
+  if (g.density.size() != d.count() || g.material.size() != d.count())
+    fail("has " + std::to_string(g.density.size()) + " densities and " + std::to_string(g.material.size()) +
+         " materials for " + std::to_string(d.count()) + " nodes");
+  if (g.material_count < 1 || g.material_count > kMaxMaterials)
+    fail("has material_count " + std::to_string(g.material_count) + ", allowed 1.." + std::to_string(kMaxMaterials));
+  for (int z = 0; z < d.nz; ++z)
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x) {
+        const std::size_t i = d.index(x, y, z);
+        const auto at = [&] {
+          return " at node (" + std::to_string(x) + ", " + std::to_string(y) + ", " + std::to_string(z) + ")";
+        };
+        if (g.material[i] >= g.material_count)
+          fail("has material " + std::to_string(g.material[i]) + at() + ", allowed below " +
+               std::to_string(g.material_count));
+        const float rho = g.density[i];
+        if (!std::isfinite(rho) || rho < 0.0f) fail("has density " + std::to_string(rho) + at());
+        if (rho != 0.0f && d.is_boundary(x, y, z)) fail("has density " + std::to_string(rho) + " on the boundary" + at());
+      }
 }
 
 }  // namespace lblight

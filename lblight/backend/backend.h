@@ -29,6 +29,13 @@ struct LatticeGeometry {
   int material_count = 1;
 };
 
+// Throws std::logic_error naming `backend` unless g keeps the contract above: at least 3 nodes
+// per edge, one density and material per node, material_count in [1, kMaxMaterials], every
+// material below it, finite non-negative densities and an empty boundary layer. Backends call it
+// before taking the arrays: a GPU kernel picks the collision operator by the material byte, so a
+// stray value would silently use another material's (or an unset) operator.
+void check_geometry(const LatticeGeometry& g, const char* backend);
+
 // One colour channel: the collision matrix and the absorb flag of every material.
 struct ChannelMaterials {
   std::array<OmegaMatrix, kMaxMaterials> omega{};

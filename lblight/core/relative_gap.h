@@ -22,10 +22,21 @@ RelativeGap relative_gap(const std::vector<Got>& got, const std::vector<Ref>& re
     const double d = static_cast<double>(got[i]) - static_cast<double>(ref[i]);
     diff_sq += d * d;
     ref_sq += static_cast<double>(ref[i]) * static_cast<double>(ref[i]);
-    diff_max = std::max(diff_max, std::fabs(d));
+    if (!(std::fabs(d) <= diff_max)) diff_max = std::fabs(d);  // NaN wins: std::max would drop it
     ref_max = std::max(ref_max, std::fabs(static_cast<double>(ref[i])));
   }
   return {ref_sq > 0 ? std::sqrt(diff_sq / ref_sq) : 0.0, ref_max > 0 ? diff_max / ref_max : 0.0};
+}
+
+// max |v_i|, NaN when any value is NaN.
+template <typename V>
+double peak_magnitude(const V& v) {
+  double p = 0;
+  for (auto x : v) {
+    const double a = std::fabs(static_cast<double>(x));
+    if (!(a <= p)) p = a;
+  }
+  return p;
 }
 
 // The largest |got_i - ref_i| / max(|ref_i|, floor): each value's difference relative to the
