@@ -84,14 +84,10 @@ TEST_CASE("float16 storage: error against float32 is small and reported", "[gpu]
   const auto f32 = run(*cuda, g, leaf_channels(), batch, 100, Precision::Float32);
   const auto f16 = run(*cuda, g, leaf_channels(), batch, 100, Precision::Float16);
   for (std::size_t s = 0; s < batch.size(); ++s) {
-    double e2 = 0, t2 = 0;
-    for (std::size_t i = 0; i < f32[s].size(); ++i) {
-      e2 += (double(f16[s][i]) - f32[s][i]) * (double(f16[s][i]) - f32[s][i]);
-      t2 += double(f32[s][i]) * f32[s][i];
-    }
-    const double rel = std::sqrt(e2 / t2);
+    const double rel = relative_gap(f16[s], f32[s]).l2;
     std::printf("float16 storage, system %zu: relative L2 difference to float32 %.2e\n", s, rel);
     CHECK(rel < 1e-2);
+    CHECK(rel > 1e-5);  // half storage does round: equal results would mean float32 ran
   }
 }
 
@@ -103,4 +99,8 @@ TEST_CASE("bake --backend cuda writes the same grids as --backend cpu", "[gpu]")
   REQUIRE(run_cli("bake s.json -o cpu --backend cpu -q", tmp.path()).exit_code == 0);
   REQUIRE(run_cli("bake s.json -o gpu --backend cuda -q", tmp.path()).exit_code == 0);
   CHECK(read_text(tmp / "gpu" / "manifest.json").find("\"cuda\"") != std::string::npos);
+  // every grid within the issue's 1e-5 (float32 on the CPU is 3.5e-6 from float64 on this scene)
+  const CliResult cmp = run_cli("compare cpu gpu --tolerance 1e-5", tmp.path());
+  INFO(cmp.out);
+  CHECK(cmp.exit_code == 0);
 }
