@@ -81,12 +81,20 @@ class EmulatedGpu {
     inflow(1);
   }
 
+  // step_kernel over the launch step_launch() lays out, block by block and thread by thread
   void step(int n) {
-    const Dims& d = a_.d;
+    const gpu::StepLaunch l = gpu::step_launch(a_.d);
     for (int t = 0; t < n; ++t) {
-      for (int z = 1; z < d.nz - 1; ++z)
-        for (int y = 1; y < d.ny - 1; ++y)
-          for (int x = 1; x < d.nx - 1; ++x) gpu::step_node(a_, tb_, x, y, z);
+      for (unsigned bz = 0; bz < l.gz; ++bz)
+        for (unsigned by = 0; by < l.gy; ++by)
+          for (unsigned bx = 0; bx < l.gx; ++bx)
+            for (unsigned ty = 0; ty < static_cast<unsigned>(l.by); ++ty)
+              for (unsigned tx = 0; tx < static_cast<unsigned>(l.bx); ++tx) {
+                int x, y, z;
+                const bool node = l.by == 1 ? gpu::step_thread_node<true>(a_.d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z)
+                                            : gpu::step_thread_node<false>(a_.d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z);
+                if (node) gpu::step_node(a_, tb_, x, y, z);
+              }
       set_level(1 - level_);
       if (first_) {
         inflow(1 - level_);
@@ -182,6 +190,43 @@ TEST_CASE("GPU kernel code on an emulated grid matches the OpenMP backend", "[gp
       CHECK(gpu_r[s].total_max == Approx(cpu_r[s].total_max).epsilon(1e-6));
       CHECK(gpu_r[s].deficit_sq == Approx(cpu_r[s].deficit_sq).epsilon(1e-4).margin(1e-12));
       CHECK(gpu_r[s].finite);
+    }
+  }
+}
+
+TEST_CASE("The step launch covers every interior node once, in blocks of 128 threads within the grid limits",
+          "[gpu-emulated]") {
+  struct Want {
+    int nx, bx;
+  };
+  // nx = 130 would waste half its blocks at 128 wide; 34 and 64 would idle half of every block
+  for (const Want w : {Want{118, 128}, Want{128, 128}, Want{256, 128}, Want{130, 32}, Want{64, 64}, Want{34, 64},
+                       Want{3, 32}, Want{200, 32}, Want{190, 64}}) {
+    for (const int ny : {3, 7, 21}) {
+      const Dims d{w.nx, ny, 4};
+      INFO("lattice " << d.nx << " x " << d.ny << " x " << d.nz);
+      const gpu::StepLaunch l = gpu::step_launch(d);
+      CHECK(l.bx == w.bx);
+      CHECK(l.bx * l.by == gpu::kStepThreads);
+      CHECK(l.gx <= 2147483647LL);
+      CHECK(l.gy <= 65535);
+      CHECK(l.gz <= 65535);
+      std::vector<int> hits(d.count(), 0);
+      for (unsigned bz = 0; bz < l.gz; ++bz)
+        for (unsigned by = 0; by < l.gy; ++by)
+          for (unsigned bx = 0; bx < l.gx; ++bx)
+            for (unsigned ty = 0; ty < static_cast<unsigned>(l.by); ++ty)
+              for (unsigned tx = 0; tx < static_cast<unsigned>(l.bx); ++tx) {
+                int x, y, z;
+                const bool node = l.by == 1 ? gpu::step_thread_node<true>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z)
+                                            : gpu::step_thread_node<false>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z);
+                if (node) ++hits[d.index(x, y, z)];
+              }
+      long long wrong = 0;
+      for (int z = 0; z < d.nz; ++z)
+        for (int y = 0; y < d.ny; ++y)
+          for (int x = 0; x < d.nx; ++x) wrong += hits[d.index(x, y, z)] != (d.is_boundary(x, y, z) ? 0 : 1);
+      CHECK(wrong == 0);
     }
   }
 }

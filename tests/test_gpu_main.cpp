@@ -4,12 +4,19 @@
 #include <catch2/catch.hpp>
 
 #include <cstdio>
+#include <filesystem>
 
 #include "lblight/backend/registry.h"
 
 int main(int argc, char** argv) {
   const std::string why = lblight::gpu_unavailable_reason();
   if (!why.empty()) {
+    // A GPU the runtime cannot use (old driver, no code for its architecture) is a failure, not a
+    // skip: skipping would pass the suite while `--backend auto` quietly runs on the CPU.
+    if (std::filesystem::exists("/dev/nvidia0")) {
+      std::printf("FAILED: /dev/nvidia0 is present but the GPU is unusable: %s\n", why.c_str());
+      return 1;
+    }
     std::printf("SKIPPED: GPU tests need a usable GPU: %s\n", why.c_str());
     return 77;
   }

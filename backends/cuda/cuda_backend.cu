@@ -14,6 +14,7 @@
 #include "backends/cuda/cuda_backend.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -48,16 +49,17 @@ struct DeviceTables {
   __device__ const CollisionOp<float>& op(int c, int k) const { return c_ops[c][k]; }
 };
 
-constexpr int kStepBlock = 128;
+constexpr int kStepBlock = 128;  // inflow_kernel's block
 constexpr int kReduceBlock = 256;
 
-// Threads start at x = 0 (x = 0 idles) so that a warp's loads begin on a row's first element,
-// aligned when nx is a multiple of 32 (4 sectors per warp and direction instead of 5).
-template <typename T>
+// One thread per interior node as step_launch() lays them out (lb_device.h).
+template <typename T, bool OneRow>
 __global__ void step_kernel(BatchArgs<T> a) {
-  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
-  if (x < 1 || x >= a.d.nx - 1) return;
-  step_node(a, DeviceTables{}, x, 1 + static_cast<int>(blockIdx.y), 1 + static_cast<int>(blockIdx.z));
+  int x, y, z;
+  if (!step_thread_node<OneRow>(a.d, blockIdx.x, blockIdx.y, blockIdx.z, blockDim.x, blockDim.y, threadIdx.x,
+                                threadIdx.y, x, y, z))
+    return;
+  step_node(a, DeviceTables{}, x, y, z);
 }
 
 template <typename T>
@@ -242,22 +244,42 @@ std::string kernel_image_problem(int device) {
   return name + " cannot run the GPU code of this build (sm_80, sm_90, compute_90 PTX): " + gpuGetErrorString(err);
 }
 
+// Why the runtime found no usable GPU, with the driver's and this build's runtime versions (a
+// driver older than the runtime is the usual cause of "driver version is insufficient").
+std::string no_gpu_message(gpuError_t err) {
+  int driver = 0, runtime = 0;
+  (void)gpuDriverGetVersion(&driver);
+  (void)gpuRuntimeGetVersion(&runtime);
+  (void)gpuGetLastError();
+  const auto version = [](int v) {
+    return v > 0 ? std::to_string(v / 1000) + "." + std::to_string(v % 1000 / 10) : std::string("none");
+  };
+  return std::string("no usable GPU: ") + gpuGetErrorString(err) + " (" +
+         (driver > 0 ? "the driver supports up to " + version(driver) : std::string("no GPU driver found")) +
+         ", this build's runtime is " + version(runtime) + ")";
+}
+
 // Per device (constant memory is per device): the solver whose tables are in its constant memory.
-// One thread drives a solver at a time (bake, bench and tests do).
+// One thread drives a solver at a time (bake, bench and tests do). A fixed array: no resizing
+// while another thread reads it.
 const void*& bound_tables_owner(int device) {
-  static std::vector<const void*> owners;
-  if (device >= static_cast<int>(owners.size())) owners.resize(static_cast<std::size_t>(device) + 1, nullptr);
-  return owners[static_cast<std::size_t>(device)];
+  static std::array<const void*, 256> owners{};
+  return owners.at(static_cast<std::size_t>(device));
 }
 
 dim3 interior_grid(const Dims& d, int block) {
   return dim3(static_cast<unsigned>((d.nx - 2 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
               static_cast<unsigned>(d.nz - 2));
 }
-// step_kernel's grid: whole rows from x = 0, interior rows in y and z.
-dim3 step_grid(const Dims& d, int block) {
-  return dim3(static_cast<unsigned>((d.nx - 1 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
-              static_cast<unsigned>(d.nz - 2));
+// Launches step_kernel over the interior (one step of every system in a).
+template <typename T>
+void launch_step(const BatchArgs<T>& a) {
+  const StepLaunch l = step_launch(a.d);
+  const dim3 grid(static_cast<unsigned>(l.gx), static_cast<unsigned>(l.gy), static_cast<unsigned>(l.gz));
+  const dim3 block(static_cast<unsigned>(l.bx), static_cast<unsigned>(l.by));
+  if (l.by == 1) step_kernel<T, true><<<grid, block>>>(a);
+  else step_kernel<T, false><<<grid, block>>>(a);
+  GPU_CHECK(gpuGetLastError());
 }
 
 template <typename T>
@@ -302,10 +324,10 @@ class Solver final : public LatticeSolver {
 
   void reset(const std::vector<SystemSpec>& batch) override {
     if (static_cast<int>(batch.size()) > capacity_) throw std::logic_error("batch larger than solver capacity");
+    for (const SystemSpec& s : batch)  // before taking the batch: its channels index constant tables
+      if (s.channel < 0 || s.channel >= channel_count_) throw std::logic_error("system channel out of range");
     batch_ = batch;
     ++batch_generation_;  // new tables for bind()
-    for (const SystemSpec& s : batch_)
-      if (s.channel < 0 || s.channel >= channel_count_) throw std::logic_error("system channel out of range");
     bind();
     level_ = 0;
     GPU_CHECK(gpuMemset(state_.get(), 0, state_.bytes()));
@@ -320,8 +342,7 @@ class Solver final : public LatticeSolver {
   void step(int steps) override {
     bind();
     for (int t = 0; t < steps; ++t) {
-      step_kernel<T><<<step_grid(d_, kStepBlock), kStepBlock>>>(args());
-      GPU_CHECK(gpuGetLastError());
+      launch_step(args());
       level_ = 1 - level_;
       if (inflow_pending_) {
         inflow(level_ptr(0, 1 - level_), false);
@@ -357,12 +378,14 @@ class Solver final : public LatticeSolver {
   }
 
   void read_totals(int system, float* out) const override {
+    use_device();
     check_system(system);
     GPU_CHECK(gpuMemcpy(out, totals_.get() + static_cast<std::size_t>(system) * count_, count_ * sizeof(float),
                         gpuMemcpyDeviceToHost));
   }
 
   void read_state(int system, std::vector<double>& f) const override {
+    use_device();
     check_system(system);
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
     GPU_CHECK(gpuMemcpy(raw.data(), level_ptr(system, level_), raw.size() * sizeof(T), gpuMemcpyDeviceToHost));
@@ -379,6 +402,7 @@ class Solver final : public LatticeSolver {
   }
 
   void write_state(int system, const std::vector<double>& f) override {
+    use_device();
     check_system(system);
     if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
@@ -401,6 +425,7 @@ class Solver final : public LatticeSolver {
   // Krylov vectors, push form: a vector is a full state (f values) of system 0, boundary-fed
   // entries included; A x leaves those entries 0, b = T(0) holds the boundary values there.
   void vectors_reserve(int count) override {
+    use_device();
     if (std::is_same_v<T, gpu_half>)
       throw Error(ErrorCategory::Unavailable, "the Krylov solver needs float32 storage (not float16)");
     const std::size_t first = vectors_.size();
@@ -413,6 +438,7 @@ class Solver final : public LatticeSolver {
     dot_partial_.allocate(kVectorBlocks + 1);
   }
   void vector_from_state(int v) override {
+    use_device();
     GPU_CHECK(gpuMemcpy(vec(v), level_ptr(0, level_), vector_bytes(), gpuMemcpyDeviceToDevice));
   }
   void vector_to_state(int v) override {
@@ -433,16 +459,17 @@ class Solver final : public LatticeSolver {
     a.systems = 1;
     a.cur = vec(x);
     a.next = vec(y);
-    step_kernel<T><<<step_grid(d_, kStepBlock), kStepBlock>>>(a);
-    GPU_CHECK(gpuGetLastError());
+    launch_step(a);
     inflow(vec(y), true, 1);
   }
   void vector_axpby(double a, int x, double b, int y) override {
+    use_device();
     axpby_kernel<T><<<kVectorBlocks, kReduceBlock>>>(static_cast<float>(a), vec(x), static_cast<float>(b), vec(y),
                                                      19 * stride_);
     GPU_CHECK(gpuGetLastError());
   }
   double vector_dot(int x, int y) override {
+    use_device();
     dot_kernel<T><<<kVectorBlocks, kReduceBlock>>>(vec(x), vec(y), 19 * stride_, dot_partial_.get());
     GPU_CHECK(gpuGetLastError());
     finish_dot_kernel<<<1, kReduceBlock>>>(dot_partial_.get(), kVectorBlocks, dot_partial_.get() + kVectorBlocks);
@@ -494,6 +521,10 @@ class Solver final : public LatticeSolver {
     GPU_CHECK(gpuGetLastError());
   }
 
+  // The runtime's current device is per host thread: a solver created on one thread and driven
+  // from another (or after another device's work) must select its own before touching memory.
+  void use_device() const { GPU_CHECK(gpuSetDevice(device_)); }
+
   // A system of the current batch: anything else would address device memory past the state.
   void check_system(int system) const {
     if (system < 0 || system >= static_cast<int>(batch_.size()))
@@ -505,6 +536,7 @@ class Solver final : public LatticeSolver {
 
   // Puts this solver's tables into constant memory unless they are there already.
   void bind() {
+    use_device();
     if (bound_tables_owner(device_) == this && bound_batch_ == batch_generation_) return;
     GPU_CHECK(gpuMemcpyToSymbol(c_ops, ops_, sizeof(ops_)));
     GPU_CHECK(gpuMemcpyToSymbol(c_absorb, absorb_, sizeof(absorb_)));
@@ -546,10 +578,7 @@ class CudaBackend final : public Backend {
   explicit CudaBackend(int device) : device_(device) {
     int count = 0;
     const gpuError_t err = gpuGetDeviceCount(&count);
-    if (err != gpuSuccess) {
-      (void)gpuGetLastError();
-      throw Error(ErrorCategory::Unavailable, std::string("no usable GPU: ") + gpuGetErrorString(err));
-    }
+    if (err != gpuSuccess) throw Error(ErrorCategory::Unavailable, no_gpu_message(err));
     if (device < 0 || device >= count)
       throw Error(ErrorCategory::Unavailable,
                   "GPU " + std::to_string(device) + " does not exist (" + std::to_string(count) + " present)");
@@ -588,6 +617,7 @@ class CudaBackend final : public Backend {
   int preferred_batch(const Dims& d, Precision, int total_systems) const override {
     return systems_to_fill(d, total_systems);
   }
+  std::size_t cache_bytes() const override { return static_cast<std::size_t>(std::max(props_.l2CacheSize, 0)); }
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {
     GPU_CHECK(gpuSetDevice(device_));
@@ -637,10 +667,7 @@ class CudaBackend final : public Backend {
 std::string cuda_unavailable_reason() {
   int count = 0;
   const gpuError_t err = gpuGetDeviceCount(&count);
-  if (err != gpuSuccess) {
-    (void)gpuGetLastError();
-    return std::string("no usable GPU: ") + gpuGetErrorString(err);
-  }
+  if (err != gpuSuccess) return gpu::no_gpu_message(err);
   if (count == 0) return "no GPU found";
   int device = 0;
   if (gpuGetDevice(&device) != gpuSuccess) {

@@ -13,6 +13,8 @@
 #define gpuSuccess hipSuccess
 #define gpuGetErrorString hipGetErrorString
 #define gpuGetDeviceCount hipGetDeviceCount
+#define gpuDriverGetVersion hipDriverGetVersion
+#define gpuRuntimeGetVersion hipRuntimeGetVersion
 #define gpuSetDevice hipSetDevice
 #define gpuGetDevice hipGetDevice
 #define gpuDeviceProp hipDeviceProp_t
@@ -50,6 +52,8 @@ using gpu_half = __half;
 #define gpuSuccess cudaSuccess
 #define gpuGetErrorString cudaGetErrorString
 #define gpuGetDeviceCount cudaGetDeviceCount
+#define gpuDriverGetVersion cudaDriverGetVersion
+#define gpuRuntimeGetVersion cudaRuntimeGetVersion
 #define gpuSetDevice cudaSetDevice
 #define gpuGetDevice cudaGetDevice
 #define gpuDeviceProp cudaDeviceProp

@@ -144,6 +144,47 @@ LBL_HOSTDEV inline void combine(double (&acc)[kReduceSlots], const double* other
   for (int k = kDiffMax; k < kReduceSlots; ++k) acc[k] = acc[k] > other[k] ? acc[k] : other[k];
 }
 
+// How step threads cover the interior: blocks of kStepThreads threads, bx along x times
+// by = kStepThreads / bx rows along y, one z plane per block. Threads start at x = 0 (x = 0
+// idles) so a warp's loads begin on a row's first element, aligned when nx is a multiple of 32.
+// bx is the width in {128, 64, 32} that pads a row's nx - 1 threads least (the widest on ties):
+// nx = 130 with 128-wide blocks would spend half its blocks on one node each, and nx <= 64 would
+// leave half of every block idle.
+inline constexpr int kStepThreads = 128;
+struct StepLaunch {
+  int bx = kStepThreads, by = 1;       // block shape
+  long long gx = 0, gy = 0, gz = 0;    // grid, in blocks
+};
+inline StepLaunch step_launch(const Dims& d) {
+  StepLaunch l;
+  const long long row = d.nx - 1;  // threads x = 0 .. nx - 2
+  long long best = -1;
+  for (int bx = kStepThreads; bx >= 32; bx /= 2) {
+    const long long padded = (row + bx - 1) / bx * bx;
+    if (best < 0 || padded < best) {
+      best = padded;
+      l.bx = bx;
+    }
+  }
+  l.by = kStepThreads / l.bx;
+  l.gx = (row + l.bx - 1) / l.bx;
+  l.gy = (d.ny - 2 + l.by - 1) / l.by;
+  l.gz = d.nz - 2;
+  return l;
+}
+// The node of thread (tx, ty) in block (bx, by, bz) of such a launch (block shape bdx x bdy);
+// false for threads off the interior, which return at once. OneRow (by == 1) is the same with
+// y the same for the whole block: row addresses then stay in the GPU's per-warp uniform
+// registers (float16 step: 80 registers instead of 96, 6 blocks per SM instead of 5).
+template <bool OneRow>
+LBL_HOSTDEV inline bool step_thread_node(const Dims& d, unsigned bx, unsigned by, unsigned bz, unsigned bdx,
+                                         unsigned bdy, unsigned tx, unsigned ty, int& x, int& y, int& z) {
+  x = static_cast<int>(bx * bdx + tx);
+  y = OneRow ? 1 + static_cast<int>(by) : 1 + static_cast<int>(by * bdy + ty);
+  z = 1 + static_cast<int>(bz);
+  return x >= 1 && x < d.nx - 1 && (OneRow || y < d.ny - 1);
+}
+
 // Interior node number n (x fastest) to coordinates.
 LBL_HOSTDEV inline void interior_coords(const Dims& d, long long n, int& x, int& y, int& z) {
   const long long ix = d.nx - 2, iy = d.ny - 2;

@@ -135,13 +135,14 @@ class Backend {
   // Sustained copy bandwidth of the device's main memory in bytes/s, counting the bytes read
   // plus the bytes written (the same accounting as lattice updates).
   virtual double measure_copy_bandwidth(std::size_t bytes) const = 0;
+  // Size of the largest cache in front of that memory (a GPU's L2, a CPU's L3), 0 when unknown:
+  // a lattice whose state fits in it is timed against the cache, not the memory.
+  virtual std::size_t cache_bytes() const { return 0; }
 };
 
 // Bytes one lattice update of one system moves at minimum: 19 values in and out, plus the
 // density and material of the node.
-inline double bytes_per_update(Precision p) {
-  const double v = p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0);
-  return 2.0 * 19.0 * v + 4.0 + 1.0;
-}
+inline double bytes_per_value(Precision p) { return p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0); }
+inline double bytes_per_update(Precision p) { return 2.0 * 19.0 * bytes_per_value(p) + 4.0 + 1.0; }
 
 }  // namespace lblight
