@@ -149,8 +149,8 @@ TEST_CASE("rho*sigma_t = 1.999: finite, float32 within 1e-5 of the reference (no
                       << r.min << " / " << r.max);
           CHECK(r.finite);
           CHECK(normwise < 1e-5);
-          worst_norm = std::max(worst_norm, normwise);
-          worst_point = std::max(worst_point, pointwise);
+          keep_worst(worst_norm, normwise);
+          keep_worst(worst_point, pointwise);
         }
   }
   WARN("stiff vs reference: normwise " << worst_norm << ", pointwise " << worst_point);
@@ -180,7 +180,7 @@ TEST_CASE("rho*sigma_t = 1.999: transients >= -1 x max, converged: scattering > 
         solver->measure(res);
         REQUIRE(res[0].finite);
         solver->read_totals(0, t.data());
-        transient = std::max(transient, interior_range(g.dims, t).negative_ratio());
+        keep_worst(transient, interior_range(g.dims, t).negative_ratio());
       }
       if (c.medium.sigma_s == 1.999) continue;  // g = 0: D ~ 1e-4, far from converged in 10^4 steps
       solver->step(10000 - 400);
@@ -287,7 +287,7 @@ TEST_CASE("Albedo 1: absorbed is 0, bookkeeping closes each step, outflow -> inf
       b = ref.balance();
       ref.step();
       const double after = ref.stored();
-      worst_closure = std::max(worst_closure, std::fabs(after - b.predicted_next()) / b.inflow);
+      keep_worst(worst_closure, std::fabs(after - b.predicted_next()) / b.inflow);
       REQUIRE(b.absorbed == 0.0);
       last_change = std::fabs(after - b.stored) / after;
       if (steps > 10 && last_change < 1e-13) break;
@@ -334,7 +334,7 @@ TEST_CASE("g = +-1 and +-0.999 (medium and wood): finite, matches the reference 
         CHECK(r.finite);
         CHECK(diff < 2e-5);
         CHECK(normwise < 1e-5);
-        worst = std::max(worst, diff);
+        keep_worst(worst, diff);
       }
     }
   WARN("g = +-1, +-0.999: worst pointwise difference to the reference " << worst);
@@ -391,8 +391,8 @@ TEST_CASE("Density 1e-7: totals and the medium's own contribution (f_0) match th
       CHECK(peak_magnitude(want_f0) > 1e-9);  // the medium did something measurable
       CHECK(d_tot < 1e-5);
       CHECK(d_f0 < 1e-5);
-      worst_tot = std::max(worst_tot, d_tot);
-      worst_f0 = std::max(worst_f0, d_f0);
+      keep_worst(worst_tot, d_tot);
+      keep_worst(worst_f0, d_f0);
     }
   WARN("density 1e-7 vs reference: totals " << worst_tot << ", interior f_0 " << worst_f0);
 }
@@ -522,7 +522,7 @@ TEST_CASE("Density jumps 0 -> 1, one-node slabs, 3-node edges: float32 matches t
         CHECK(r.finite);
         CHECK(normwise < 1e-5);
         CHECK(diff < (ch.absorbs[0] ? 1e-5 : 1e-4));
-        worst[ch.absorbs[0] ? 1 : 0] = std::max(worst[ch.absorbs[0] ? 1 : 0], diff);
+        keep_worst(worst[ch.absorbs[0] ? 1 : 0], diff);
       }
   WARN("geometry cases: worst pointwise difference to the reference: stiff medium " << worst[0] << ", leaf "
                                                                                    << worst[1]);
@@ -604,12 +604,12 @@ TEST_CASE("Energy bookkeeping closes to 1e-12 per step (reference, float64)", "[
       for (int step = 0; step < 200; ++step) {
         const StepBalance b = ref.balance();
         ref.step();
-        worst = std::max(worst, std::fabs(ref.stored() - b.predicted_next()) / b.inflow);
+        keep_worst(worst, std::fabs(ref.stored() - b.predicted_next()) / b.inflow);
         absorbed_share = b.absorbed / b.inflow;
       }
       INFO("absorb " << ch.absorbs[0] << ", B" << sol << ": closure " << worst << ", absorbed / inflow "
                      << absorbed_share);
-      worst_all = std::max(worst_all, worst);
+      keep_worst(worst_all, worst);
       CHECK(worst < 1e-12);
       // the check can fail: leaving out the absorbed term would break it by this much
       if (ch.absorbs[0]) CHECK(absorbed_share > 0.05);
@@ -642,7 +642,7 @@ TEST_CASE("Float32 backend at steady state: inflow = outflow + absorbed to 1e-6"
                      << ", last step changed totals by " << change);
       CHECK(change < 1e-6);
       CHECK(imbalance < 1e-6);
-      worst_imbalance = std::max(worst_imbalance, imbalance);
+      keep_worst(worst_imbalance, imbalance);
     }
   WARN("float32 steady state: worst |inflow - outflow - absorbed| / inflow = " << worst_imbalance);
 }
@@ -817,7 +817,7 @@ void bake_and_check(const std::string& scene, double bound, bool expect_warning)
       CHECK(range.finite);
       CHECK(range.min >= -bound * range.max);
       if (std::string(grid) == "B00") CHECK(zeros == 0);
-      worst = std::max(worst, range.negative_ratio());
+      keep_worst(worst, range.negative_ratio());
     }
     WARN("bake (" << (expect_warning ? "stiff" : "presets") << "), " << model
                   << ": most negative value / largest = " << -worst);

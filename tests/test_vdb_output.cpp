@@ -47,11 +47,33 @@ TEST_CASE("Output .vdb holds density, brown and B grids with transform and metad
     CHECK(g.metadata["lblight_direction"] == nlohmann::json(r.plan.direction));
     for (int c = 0; c < 3; ++c) CHECK(g.values[c] == r.totals[c]);
   }
-  // world position of lattice node (0, 0, 0) as recorded in the manifest
+  // density and brown read back: the lattice's density, and 1 exactly on wood nodes with density
+  const DenseGridIn density = read_vdb_grid_dense(file, "density");
+  const DenseGridIn brown = read_vdb_grid_dense(file, "brown");
+  REQUIRE(density.frame.dims == mp.lattice.dims);
+  REQUIRE(brown.frame.dims == mp.lattice.dims);
+  CHECK(density.values[0] == mp.lattice.density);
+  std::size_t wood = 0, brown_ones = 0, brown_wrong = 0;
+  for (std::size_t i = 0; i < mp.lattice.density.size(); ++i) {
+    const bool is_wood = mp.lattice.material[i] == 1 && mp.lattice.density[i] > 0.0f;
+    wood += is_wood;
+    brown_ones += brown.values[0][i] == 1.0f;
+    brown_wrong += brown.values[0][i] != (is_wood ? 1.0f : 0.0f);
+  }
+  CHECK(wood > 0);
+  CHECK(brown_ones == wood);
+  CHECK(brown_wrong == 0);
+  // world position of lattice node (0, 0, 0) in the manifest: the grid's own transform (as
+  // OpenVDB reads it back) applied to the node's index coordinates
   const nlohmann::json manifest = nlohmann::json::parse(read_text(tmp / "out" / "manifest.json"));
   const auto origin = manifest["models"][0]["lattice"]["origin"];
-  const auto o = lattice_origin_world(mp);
-  for (int c = 0; c < 3; ++c) CHECK(origin[c].get<double>() == Approx(o[c]));
+  const auto& m = density.frame.index_to_world;
+  const auto& imin = density.frame.index_min;
+  for (int r = 0; r < 3; ++r) {
+    const double want = m[r * 4] * imin[0] + m[r * 4 + 1] * imin[1] + m[r * 4 + 2] * imin[2] + m[r * 4 + 3];
+    CHECK(origin[r].get<double>() == Approx(want).margin(1e-12));
+  }
+  CHECK(std::abs(m[3]) + std::abs(m[7]) + std::abs(m[11]) > 0);  // a translated frame: the term matters
   CHECK(manifest["models"][0]["solutions"].size() == 3);
   CHECK(manifest["scene"]["hash"] == scene.hash);
 }
@@ -74,4 +96,46 @@ TEST_CASE("Dense arrays are x fastest in OpenVDB index space", "[io]") {
   const DenseGridIn v = read_vdb_grid_dense(tmp / "o.vdb", "v");
   CHECK(v.frame.index_min == std::array<int, 3>{11, 22, 31});
   CHECK(v.values[1].at(0) == 2.0f);
+}
+
+// Static lighting through the whole scene path (angles or vector, intensity, ambient) against the
+// base solutions of the same model, by linearity: the sun straight up travels along lattice
+// direction 6 (0, 0, -1); elevation 0 / azimuth 90 points toward +y, so its light travels along
+// direction 4 (0, -1, 0) (docs/output-format.md's table).
+TEST_CASE("Static lighting equals intensity x B_j + ambient x B00 for suns along lattice directions", "[io][sun]") {
+  TempDir tmp;
+  const std::string model = R"("models": [{"name": "m", "density": {"type": "procedural", "shape": "plant",
+      "resolution": 12}, "material": "leaf", "wood_material": "bark"}], "solver": {"iterations": 30})";
+  const auto bake = [&](const std::string& name, const std::string& lighting) {
+    const Scene scene = parse_scene(R"({"version": 1, )" + model + R"(, "lighting": )" + lighting + "}",
+                                    tmp / (name + ".json"));
+    BakedModel b = bake_first_model(scene, tmp / name);
+    std::map<std::string, std::array<std::vector<float>, 3>> out;
+    for (const SolutionResult& r : b.kept) out[r.plan.grid_name] = r.totals;
+    return out;
+  };
+  auto base = bake("base", R"({"mode": "base", "solutions": "0,4,6", "ambient_from_sum": false})");
+  struct Case {
+    std::string lighting;
+    std::string grid;
+    double intensity, ambient;
+  };
+  for (const Case& c : {Case{R"({"mode": "static", "sun": {"direction": [0, 0, 3]}, "intensity": 2, "ambient": 0.5})",
+                             "B06", 2.0, 0.5},
+                        Case{R"({"mode": "static", "sun": {"elevation": 0, "azimuth": 90}, "intensity": 1.5})", "B04",
+                             1.5, 0.0},
+                        Case{R"({"mode": "static", "sun": {"elevation": 90, "azimuth": 17}, "ambient": 0.25})", "B06",
+                             1.0, 0.25}}) {
+    INFO(c.lighting);
+    auto stat = bake("static", c.lighting);
+    REQUIRE(stat.count("light") == 1);
+    for (int ch = 0; ch < 3; ++ch) {
+      std::vector<double> want(base["B00"][ch].size());
+      for (std::size_t i = 0; i < want.size(); ++i)
+        want[i] = c.intensity * base[c.grid][ch][i] + c.ambient * base["B00"][ch][i];
+      CHECK(peak_magnitude(want) > 0);
+      CHECK(max_relative_difference(want, stat["light"][ch], 1e-3 * peak_magnitude(want)) < 1e-5);
+    }
+    std::filesystem::remove_all(tmp / "static");
+  }
 }
