@@ -122,3 +122,33 @@ TEST_CASE("Diffusion coefficient of 000 eq. (4)", "[omega]") {
   CHECK(diffusion_coefficient({0.5, 1.5, 0}) == Approx(0.0));
   CHECK(diffusion_coefficient({0.5, 1.6, 0}) < 0.0);
 }
+
+// Entries of Omega worked out from 000 eqs. (8)-(9) by hand, grouping the 18 directions by their
+// cosine to the incoming one (the property tests above hold for any normalised phase; this pins
+// the Henyey-Greenstein shape, its exponent 3/2 and the 2:1 axial:diagonal weighting). Incoming
+// j = 1, (+1, 0, 0): axial directions at cos 1, -1 and 0 (x4); diagonal ones at cos 1/sqrt2 (x4),
+// -1/sqrt2 (x4) and 0 (x4).
+TEST_CASE("Omega entries equal eqs. (8)-(9) worked out by hand at g = 0.5", "[omega]") {
+  const double g = 0.5, sigma_a = 0.1, sigma_s = 0.8;
+  const auto p = [g](double c) { return (1 - g * g) / std::pow(1 - 2 * g * c + g * g, 1.5); };
+  const double r = 1 / std::sqrt(2.0);
+  const double norm = (2 * (p(1) + p(-1) + 4 * p(0)) + (4 * p(r) + 4 * p(-r) + 4 * p(0))) / 24;  // eq. (8)
+  const OmegaMatrix om = build_omega({sigma_a, sigma_s, g});
+  const auto dir = [](int x, int y, int z) {
+    for (int m = 1; m < kQ; ++m)
+      if (d3q19::cx(m) == x && d3q19::cy(m) == y && d3q19::cz(m) == z) return m;
+    FAIL("no direction " << x << y << z);
+    return -1;
+  };
+  const int j = dir(1, 0, 0);
+  const auto entry = [&](int i) { return om[static_cast<std::size_t>(i * kQ + j)]; };
+  const double sigma_t = sigma_a + sigma_s;
+  CHECK(entry(j) == Approx(-sigma_t + sigma_s * (2.0 / 24) * p(1) / norm).epsilon(1e-12));
+  CHECK(entry(dir(-1, 0, 0)) == Approx(sigma_s * (2.0 / 24) * p(-1) / norm).epsilon(1e-12));
+  CHECK(entry(dir(0, 0, 1)) == Approx(sigma_s * (2.0 / 24) * p(0) / norm).epsilon(1e-12));
+  CHECK(entry(dir(1, 1, 0)) == Approx(sigma_s * (1.0 / 24) * p(r) / norm).epsilon(1e-12));
+  CHECK(entry(dir(-1, 0, 1)) == Approx(sigma_s * (1.0 / 24) * p(-r) / norm).epsilon(1e-12));
+  CHECK(entry(dir(0, 1, -1)) == Approx(sigma_s * (1.0 / 24) * p(0) / norm).epsilon(1e-12));
+  // forward scattering dominates at g = 0.5: p(1) / p(-1) = (1.5 / 0.5)^3 = 27
+  CHECK(p(1) / p(-1) == Approx(27.0));
+}
