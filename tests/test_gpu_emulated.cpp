@@ -29,6 +29,23 @@ struct Storage<_Float16> {
 
 namespace {
 
+// Every thread of the step launch step_launch(d) lays out, block by block, as step_kernel runs
+// them: node(x, y, z) for each thread on an interior node.
+template <typename Node>
+void for_each_step_thread(const Dims& d, Node&& node) {
+  const gpu::StepLaunch l = gpu::step_launch(d);
+  for (unsigned bz = 0; bz < l.gz; ++bz)
+    for (unsigned by = 0; by < l.gy; ++by)
+      for (unsigned bx = 0; bx < l.gx; ++bx)
+        for (unsigned ty = 0; ty < static_cast<unsigned>(l.by); ++ty)
+          for (unsigned tx = 0; tx < static_cast<unsigned>(l.bx); ++tx) {
+            int x, y, z;
+            if (l.by == 1 ? gpu::step_thread_node<true>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z)
+                          : gpu::step_thread_node<false>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z))
+              node(x, y, z);
+          }
+}
+
 struct HostTables {
   std::vector<int> channels;
   std::vector<std::array<float, 19>> boundaries;
@@ -83,18 +100,8 @@ class EmulatedGpu {
 
   // step_kernel over the launch step_launch() lays out, block by block and thread by thread
   void step(int n) {
-    const gpu::StepLaunch l = gpu::step_launch(a_.d);
     for (int t = 0; t < n; ++t) {
-      for (unsigned bz = 0; bz < l.gz; ++bz)
-        for (unsigned by = 0; by < l.gy; ++by)
-          for (unsigned bx = 0; bx < l.gx; ++bx)
-            for (unsigned ty = 0; ty < static_cast<unsigned>(l.by); ++ty)
-              for (unsigned tx = 0; tx < static_cast<unsigned>(l.bx); ++tx) {
-                int x, y, z;
-                const bool node = l.by == 1 ? gpu::step_thread_node<true>(a_.d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z)
-                                            : gpu::step_thread_node<false>(a_.d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z);
-                if (node) gpu::step_node(a_, tb_, x, y, z);
-              }
+      for_each_step_thread(a_.d, [&](int x, int y, int z) { gpu::step_node(a_, tb_, x, y, z); });
       set_level(1 - level_);
       if (first_) {
         inflow(1 - level_);
@@ -212,16 +219,7 @@ TEST_CASE("The step launch covers every interior node once, in blocks of 128 thr
       CHECK(l.gy <= 65535);
       CHECK(l.gz <= 65535);
       std::vector<int> hits(d.count(), 0);
-      for (unsigned bz = 0; bz < l.gz; ++bz)
-        for (unsigned by = 0; by < l.gy; ++by)
-          for (unsigned bx = 0; bx < l.gx; ++bx)
-            for (unsigned ty = 0; ty < static_cast<unsigned>(l.by); ++ty)
-              for (unsigned tx = 0; tx < static_cast<unsigned>(l.bx); ++tx) {
-                int x, y, z;
-                const bool node = l.by == 1 ? gpu::step_thread_node<true>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z)
-                                            : gpu::step_thread_node<false>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z);
-                if (node) ++hits[d.index(x, y, z)];
-              }
+      for_each_step_thread(d, [&](int x, int y, int z) { ++hits[d.index(x, y, z)]; });
       long long wrong = 0;
       for (int z = 0; z < d.nz; ++z)
         for (int y = 0; y < d.ny; ++y)

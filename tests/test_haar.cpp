@@ -11,12 +11,11 @@
 #include "lblight/compress/haar.h"
 #include "lblight/compress/lbh_writer.h"
 #include "lblight/core/error.h"
+#include "lblight/core/relative_gap.h"
 #include "lblight/lattice/sun.h"
 #include "readers/lbh/lbh_reader.h"
-#include "tests/test_support.h"
 
 using namespace lblight;
-using lblight::test::keep_worst;
 
 namespace {
 

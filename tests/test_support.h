@@ -80,12 +80,7 @@ std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g
 // The same in double from the raw state (for float64 runs, whose totals read_totals rounds).
 std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
                                      const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps);
-// max_relative_difference(ref, got, floor): lblight/core/relative_gap.h.
-// worst = max(worst, v), except that a NaN v sticks (std::max(worst, NaN) keeps worst, so a
-// broken result would pass the check that follows).
-inline void keep_worst(double& worst, double v) {
-  if (!(v <= worst)) worst = v;
-}
+// max_relative_difference(ref, got, floor), keep_worst(worst, v): lblight/core/relative_gap.h.
 
 class TempDir {
  public:

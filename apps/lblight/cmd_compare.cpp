@@ -40,15 +40,12 @@ nlohmann::json read_manifest(const fs::path& dir) {
 // Per grid, each value's difference relative to the reference value; values below 1e-6 of the
 // grid's largest are measured against that floor: light that faint is rounding noise in either bake.
 double grid_difference(const DenseGridIn& ref, const DenseGridIn& got) {
-  float largest = 0.0f;
-  for (const auto& ch : ref.values)
-    for (float v : ch) largest = std::max(largest, std::fabs(v));
-  const double floor = std::max(1e-30, 1e-6 * static_cast<double>(largest));
+  double largest = 0.0;
+  for (const auto& ch : ref.values) largest = std::max(largest, peak_magnitude(ch));
+  const double floor = std::max(1e-30, 1e-6 * largest);
   double worst = 0.0;
-  for (std::size_t c = 0; c < ref.values.size(); ++c) {
-    const double d = max_relative_difference(ref.values[c], got.values[c], floor);
-    if (!(d <= worst)) worst = d;  // NaN wins
-  }
+  for (std::size_t c = 0; c < ref.values.size(); ++c)
+    keep_worst(worst, max_relative_difference(ref.values[c], got.values[c], floor));
   return worst;
 }
 
@@ -75,7 +72,7 @@ int compare_outputs(const CompareArgs& a) {
       const std::string grid = s.at("grid");
       const double d = grid_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid));
       std::printf("%s %s: max relative difference %.3g\n", name.c_str(), grid.c_str(), d);
-      if (!(d <= worst)) worst = d;
+      keep_worst(worst, d);
       ++grids;
     }
   }

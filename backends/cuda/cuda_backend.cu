@@ -287,11 +287,10 @@ class Solver final : public LatticeSolver {
  public:
   Solver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity)
       : d_(g.dims), capacity_(capacity) {
-    if (d_.nx < 3 || d_.ny < 3 || d_.nz < 3) throw_invalid("lattice must have at least 3 nodes per edge");
+    check_geometry(g, "cuda");  // the step kernel picks its operator by the material byte
     if (d_.ny - 2 > 65535 || d_.nz - 2 > 65535) throw_invalid("lattice too large for the CUDA launch grid");
     if (static_cast<int>(channels.size()) > kMaxChannels || g.material_count > kMaxMaterialsGpu)
       throw std::logic_error("cuda backend: too many channels or materials");
-    check_geometry(g, "cuda");  // the step kernel picks its operator by the material byte
     if (capacity_ < 1 || capacity_ > kMaxBatch) throw std::logic_error("cuda backend: batch capacity out of range");
     for (std::size_t c = 0; c < channels.size(); ++c) {
       for (int k = 0; k < g.material_count; ++k) ops_[c][k] = convert_op<float>(reduce_omega(channels[c].omega[k]));

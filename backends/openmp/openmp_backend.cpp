@@ -150,7 +150,6 @@ class CpuLatticeSolver final : public LatticeSolver {
         threads_(threads),
         stores_(stores),
         flush_denormals_(flush_denormals) {
-    if (d_.nx < 3 || d_.ny < 3 || d_.nz < 3) throw_invalid("lattice must have at least 3 nodes per edge");
     check_geometry(g, "cpu");
     density_ = g.density;
     material_ = g.material;

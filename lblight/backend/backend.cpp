@@ -3,6 +3,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "lblight/core/error.h"
+
 namespace lblight {
 
 const char* to_string(Precision p) {
@@ -19,9 +21,8 @@ void check_geometry(const LatticeGeometry& g, const char* backend) {
     throw std::logic_error(std::string(backend) + " backend: lattice geometry " + what);
   };
   const Dims& d = g.dims;
-  if (d.nx < 3 || d.ny < 3 || d.nz < 3)
-    fail("needs at least 3 nodes per edge, got " + std::to_string(d.nx) + " x " + std::to_string(d.ny) + " x " +
-         std::to_string(d.nz));
+  // an input the caller can meet (a tiny model), not a broken contract: InvalidInput
+  if (d.nx < 3 || d.ny < 3 || d.nz < 3) throw_invalid("lattice must have at least 3 nodes per edge");
   if (g.density.size() != d.count() || g.material.size() != d.count())
     fail("has " + std::to_string(g.density.size()) + " densities and " + std::to_string(g.material.size()) +
          " materials for " + std::to_string(d.count()) + " nodes");

@@ -29,8 +29,9 @@ struct LatticeGeometry {
   int material_count = 1;
 };
 
-// Throws std::logic_error naming `backend` unless g keeps the contract above: at least 3 nodes
-// per edge, one density and material per node, material_count in [1, kMaxMaterials], every
+// Checks g against the contract above. Fewer than 3 nodes per edge is an input error
+// (Error, InvalidInput); otherwise it throws std::logic_error naming `backend` unless there is
+// one density and material per node, material_count in [1, kMaxMaterials], every
 // material below it, finite non-negative densities and an empty boundary layer. Backends call it
 // before taking the arrays: a GPU kernel picks the collision operator by the material byte, so a
 // stray value would silently use another material's (or an unset) operator.

@@ -11,6 +11,12 @@
 
 namespace lblight {
 
+// worst = max(worst, v), except that a NaN v sticks: std::max(worst, NaN) keeps worst, so a
+// comparison built on it would pass a broken result.
+inline void keep_worst(double& worst, double v) {
+  if (!(v <= worst)) worst = v;
+}
+
 struct RelativeGap {
   double l2 = 0, max = 0;
 };
@@ -22,7 +28,7 @@ RelativeGap relative_gap(const std::vector<Got>& got, const std::vector<Ref>& re
     const double d = static_cast<double>(got[i]) - static_cast<double>(ref[i]);
     diff_sq += d * d;
     ref_sq += static_cast<double>(ref[i]) * static_cast<double>(ref[i]);
-    if (!(std::fabs(d) <= diff_max)) diff_max = std::fabs(d);  // NaN wins: std::max would drop it
+    keep_worst(diff_max, std::fabs(d));
     ref_max = std::max(ref_max, std::fabs(static_cast<double>(ref[i])));
   }
   return {ref_sq > 0 ? std::sqrt(diff_sq / ref_sq) : 0.0, ref_max > 0 ? diff_max / ref_max : 0.0};
@@ -34,7 +40,7 @@ double peak_magnitude(const V& v) {
   double p = 0;
   for (auto x : v) {
     const double a = std::fabs(static_cast<double>(x));
-    if (!(a <= p)) p = a;
+    keep_worst(p, a);
   }
   return p;
 }
@@ -48,7 +54,7 @@ double max_relative_difference(const std::vector<Ref>& ref, const std::vector<Go
   for (std::size_t i = 0; i < ref.size(); ++i) {
     const double r = static_cast<double>(ref[i]);
     const double d = std::fabs(static_cast<double>(got[i]) - r) / std::max(std::fabs(r), floor);
-    if (!(d <= worst)) worst = d;
+    keep_worst(worst, d);
   }
   return worst;
 }
