@@ -78,6 +78,9 @@ TEST_CASE("bake writes a manifest, a vdb and a summary that inspect reads back",
   CHECK(sol[2]["iterations"] == 24);  // paper: 2 x longest edge (12)
   CHECK(sol[2]["grid"] == "B05");
   CHECK(sol[2].contains("error_estimate"));  // null: 24 steps are too few to estimate
+  // peak memory counts the systems' state (two time levels of 19 float32 values per node, at
+  // least one system), not only the lattice's density and material (9 bytes per node)
+  CHECK(m["models"][0]["peak_memory_bytes"].get<std::size_t>() >= 2u * 19u * 4u * (12u * 10u * 8u));
   CHECK(fs::exists(tmp / "out" / "cloud.vdb"));
 
   const CliResult i = run_cli("inspect out", tmp.path());

@@ -30,12 +30,14 @@ class ProgressLog final : public BakeObserver {
 
   void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) override {
     const Dims& d = mp.lattice.dims;
-    spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} in use)",
+    spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice)",
                  mp.spec->name, d.nx, d.ny, d.nz, mp.solutions.size(), mp.channels.size(), backend.name(),
                  format_bytes(static_cast<double>(bytes)));
     out_.set_peak_bytes(mp, bytes);
     last_beat_ = std::chrono::steady_clock::now();
   }
+
+  void memory_in_use(const ModelPlan& mp, std::size_t bytes) override { out_.set_peak_bytes(mp, bytes); }
 
   void progress(const BakeProgress& ev) override {
     const auto now = std::chrono::steady_clock::now();

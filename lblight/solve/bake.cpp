@@ -319,6 +319,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     BatchRunner runner(mp, *solver, opt, observer, batch_solutions, batch.size());
     BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov() : runner.plain();
     const double batch_seconds = runner.seconds();
+    observer.memory_in_use(mp, solver->bytes_in_use());
 
     // Collect each system's totals; a solution is done once all its channels are.
     for (std::size_t s = 0; s < batch.size(); ++s) {

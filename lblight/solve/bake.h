@@ -38,7 +38,12 @@ struct BakeProgress {
 class BakeObserver {
  public:
   virtual ~BakeObserver() = default;
+  // bytes: what the solver holds on its device once created (the lattice; a backend may
+  // allocate its systems' state only when a batch starts).
   virtual void model_started(const ModelPlan&, const Backend&, std::size_t /*bytes*/) {}
+  // After each batch: the solver's device memory then (state, totals, Krylov vectors included).
+  // Solvers never give memory back while a model solves, so the last report is the peak.
+  virtual void memory_in_use(const ModelPlan&, std::size_t /*bytes*/) {}
   virtual void progress(const BakeProgress&) {}
   // The result may be moved from.
   virtual void solution_done(const ModelPlan& model, SolutionResult& result) = 0;
