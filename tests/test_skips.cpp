@@ -141,6 +141,9 @@ TEST_CASE("Scene lighting declarations choose the solutions, and conflicts are r
   CHECK(parse_scene(scene_text(R"({"mode": "base"})", "{}"), "s.json").lighting.solutions.size() == 19);
   CHECK_THROWS_WITH(parse_scene(scene_text(R"({"solutions": "all", "sun_range": {"min_elevation": 0}})", "{}"), "s.json"),
                     Catch::Contains("/lighting/solutions"));
+  // instance_rotation only selects solutions: beside a listed set it would be silently ignored
+  CHECK_THROWS_WITH(parse_scene(scene_text(R"({"solutions": [0, 6], "instance_rotation": "yaw"})", "{}"), "s.json"),
+                    Catch::Contains("instance_rotation"));
   CHECK_THROWS_WITH(parse_scene(scene_text(R"({"instance_rotation": "roll"})", "{}"), "s.json"),
                     Catch::Contains("allowed: none, yaw"));
   CHECK_THROWS_WITH(parse_scene(scene_text(R"({"sun_range": {"min_elevation": 50, "max_elevation": 10}})", "{}"), "s.json"),

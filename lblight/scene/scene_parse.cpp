@@ -278,7 +278,8 @@ void read_base_lighting(const JsonReader& r, LightingSpec& l) {
   c.ambient = r.boolean_or("ambient", true);
   l.ambient_from_sum = r.boolean_or("ambient_from_sum", true);
 
-  const bool constrained = r.has("sun_range") || r.has("sun") || r.has("ambient");
+  const bool constrained =
+      r.has("sun_range") || r.has("sun") || r.has("ambient") || r.has("instance_rotation");
   std::string listed = "auto";
   if (r.has("solutions")) {
     const JsonReader s = r.child("solutions");
@@ -298,7 +299,7 @@ void read_base_lighting(const JsonReader& r, LightingSpec& l) {
       s.fail("expected \"auto\", \"all\", a string like \"0,1,5-7\" or a list of indices");
     }
     if (listed != "auto" && constrained)
-      s.fail("the solutions are listed and also follow from sun/sun_range/ambient; give one of them "
+      s.fail("the solutions are listed and also follow from sun/sun_range/instance_rotation/ambient; give one of them "
              "(\"solutions\": \"auto\" bakes what the sun declarations need)");
   }
   l.solutions_from_sun = listed == "auto";
