@@ -69,6 +69,11 @@ TEST_CASE("Every bad field is named by its JSON path", "[scene]") {
         "/models/0/material/g");
   // JSON has no Inf: an overflowing number is rejected by the parser, naming the text
   CHECK(error_path(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": 1e999})")) == "");
+  // a key given twice is an error at the second one (the parser alone keeps the last silently)
+  CHECK(error_path(with_model_field(R"("material": "cloud", "material": "leaf")")) == "/models/0/material");
+  CHECK(error_path(R"({"version": 1, "version": 1, "models": []})") == "/version");
+  // so is nesting deeper than any scene needs (printing such a value recursed off the stack)
+  CHECK(error_path(std::string(100000, '[') + std::string(100000, ']')).rfind("/0/0/0/", 0) == 0);
   CHECK(error_path(with_model_field(R"("material": "granite")")) == "/models/0/material");
   CHECK(error_path(with_model_field(R"("material": "cloud", "margin": 0)")) == "/models/0/margin");
   CHECK(error_path(with_model_field(R"("material": "cloud", "colour": 1)")) == "/models/0/colour");

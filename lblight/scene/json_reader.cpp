@@ -1,8 +1,86 @@
 #include "lblight/scene/json_reader.h"
 
 #include <cmath>
+#include <set>
+#include <vector>
 
 namespace lblight {
+
+namespace {
+
+// SAX pass that only checks structure: open containers with the keys seen so far.
+class StrictStructure final : public nlohmann::json_sax<nlohmann::json> {
+ public:
+  explicit StrictStructure(std::string file) : file_(std::move(file)) {}
+
+  bool null() override { return value(); }
+  bool boolean(bool) override { return value(); }
+  bool number_integer(number_integer_t) override { return value(); }
+  bool number_unsigned(number_unsigned_t) override { return value(); }
+  bool number_float(number_float_t, const string_t&) override { return value(); }
+  bool string(string_t&) override { return value(); }
+  bool binary(binary_t&) override { return value(); }
+  bool start_object(std::size_t) override { return open(true); }
+  bool end_object() override { return close(); }
+  bool start_array(std::size_t) override { return open(false); }
+  bool end_array() override { return close(); }
+  bool key(string_t& k) override {
+    Level& l = stack_.back();
+    l.key = k;
+    if (!l.keys.insert(k).second)
+      throw_invalid("key '" + k + "' is given twice in one object; give each field once", {file_, pointer(), {}});
+    return true;
+  }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception& e) override {
+    // Includes numbers too large for a double (1e999): JSON has no Inf or NaN, so a value that
+    // would overflow is rejected here, with the offending text in the message.
+    throw_invalid(std::string("not valid JSON (allowed: finite numbers only): ") + e.what(), {file_, {}, {}});
+  }
+
+ private:
+  struct Level {
+    bool object = false;
+    std::size_t index = 0;  // arrays: the element being read
+    std::string key;        // objects: the member being read
+    std::set<std::string> keys;
+  };
+  bool value() {
+    if (!stack_.empty() && !stack_.back().object) ++stack_.back().index;
+    return true;
+  }
+  bool open(bool object) {
+    if (static_cast<int>(stack_.size()) >= JsonReader::kMaxDepth)
+      throw_invalid("JSON nested deeper than " + std::to_string(JsonReader::kMaxDepth) + " levels; a scene needs a few",
+                    {file_, pointer(), {}});
+    stack_.push_back({object, 0, {}, {}});
+    return true;
+  }
+  bool close() {
+    stack_.pop_back();
+    return value();
+  }
+  // JSON pointer of the value being read (keys unescaped: for messages only).
+  std::string pointer() const {
+    std::string p;
+    for (const Level& l : stack_) p += "/" + (l.object ? l.key : std::to_string(l.index));
+    return p.empty() ? "/" : p;
+  }
+
+  std::string file_;
+  std::vector<Level> stack_;
+};
+
+}  // namespace
+
+nlohmann::json JsonReader::parse_strict(const std::string& text, const std::string& file) {
+  StrictStructure check(file);
+  nlohmann::json::sax_parse(text, &check);
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {  // not expected after the pass above
+    throw_invalid(std::string("not valid JSON: ") + e.what(), {file, {}, {}});
+  }
+}
 
 std::string JsonReader::describe(const nlohmann::json& v) {
   std::string s = v.dump();

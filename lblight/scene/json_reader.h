@@ -44,6 +44,13 @@ class JsonReader {
 
   static std::string describe(const nlohmann::json& v);  // short rendering of a value for messages
 
+  // Parses a whole document as nlohmann::json::parse does, but also rejects a key given twice in
+  // one object (the last one would silently win) and nesting deeper than kMaxDepth (no scene
+  // needs it; recursive code further on would overflow the stack). Errors name `file` and the
+  // JSON pointer or byte position.
+  static constexpr int kMaxDepth = 64;
+  static nlohmann::json parse_strict(const std::string& text, const std::string& file);
+
  private:
   const nlohmann::json* j_;
   std::string path_, file_;

@@ -406,14 +406,7 @@ OutputSpec read_output(const JsonReader& r) {
 }  // namespace
 
 Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::exception& e) {
-    // Includes numbers too large for a double (1e999): JSON has no Inf or NaN, so a value that
-    // would overflow is rejected here, with the offending text in the message.
-    throw_invalid(std::string("not valid JSON (allowed: finite numbers only): ") + e.what(), {file.string(), {}, {}});
-  }
+  const nlohmann::json j = JsonReader::parse_strict(text, file.string());
   const JsonReader root(j, "", file.string());
   root.expect_object();
   root.only_keys({"version", "name", "models", "lighting", "solver", "output", "$schema", "comment"});
