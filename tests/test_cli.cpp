@@ -106,6 +106,38 @@ TEST_CASE("bake writes a manifest, a vdb and a summary that inspect reads back",
   CHECK(read_text(tmp / "precious" / "notes.txt") == "keep me");
 }
 
+TEST_CASE("bake and report replace only their own earlier output, never a folder holding anything else",
+          "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "tiny.json", kTinyScene);
+  const std::string report = " --solutions 5 --runs plain:float32 -q";
+  REQUIRE(run_cli("bake tiny.json -o b -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("report tiny.json -o r" + report, tmp.path()).exit_code == 0);
+  CHECK(fs::exists(tmp / "r" / "report.json"));
+  CHECK(run_cli("report tiny.json -o r" + report, tmp.path()).exit_code == 0);  // its own output
+  CHECK(run_cli("bake tiny.json -o b -q", tmp.path()).exit_code == 0);
+
+  // each command refuses the other's output
+  CHECK(run_cli("report tiny.json -o b" + report, tmp.path()).exit_code == 2);
+  CHECK(fs::exists(tmp / "b" / "manifest.json"));
+  CHECK(run_cli("bake tiny.json -o r -q", tmp.path()).exit_code == 2);
+  CHECK(fs::exists(tmp / "r" / "report.json"));
+
+  // a file lblight did not write beside a real manifest: replacing would delete it
+  write_text(tmp / "b" / "notes.txt", "keep me");
+  const CliResult extra = run_cli("bake tiny.json -o b -q", tmp.path());
+  CHECK(extra.exit_code == 2);
+  CHECK(extra.err.find("notes.txt") != std::string::npos);
+  CHECK(read_text(tmp / "b" / "notes.txt") == "keep me");
+
+  // a manifest.json from anything else (a browser extension's, say) does not make a folder ours
+  fs::create_directories(tmp / "ext" / "src");
+  write_text(tmp / "ext" / "manifest.json", R"({"name": "my-extension", "manifest_version": 3})");
+  write_text(tmp / "ext" / "src" / "main.js", "code");
+  CHECK(run_cli("bake tiny.json -o ext -q", tmp.path()).exit_code == 2);
+  CHECK(read_text(tmp / "ext" / "src" / "main.js") == "code");
+}
+
 TEST_CASE("validate prints the plan without writing anything", "[cli]") {
   TempDir tmp;
   write_text(tmp / "tiny.json", kTinyScene);

@@ -40,7 +40,7 @@ int run_report(const ReportArgs& args) {
   const std::filesystem::path target =
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-report")
                           : std::filesystem::path(args.output);
-  StagedDirectory::check_target(target);
+  StagedDirectory::check_target(target, OutputKind::Report);
 
   ReportOptions opt;
   opt.solutions = parse_solution_list(args.study, {"--solutions", {}, {}});
@@ -62,7 +62,7 @@ int run_report(const ReportArgs& args) {
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
   const Report rep = make_report(plan, *backend, *reference, opt, [](const std::string& s) { spdlog::info("{}", s); });
 
-  StagedDirectory dir(target);
+  StagedDirectory dir(target, OutputKind::Report);
   nlohmann::json j;
   j["scene"] = {{"file", scene.file.string()}, {"name", scene.name}, {"hash", scene.hash}};
   j["backend"] = backend->description();

@@ -83,7 +83,7 @@ nlohmann::json savings_json(const ModelPlan& mp) {
 
 BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
                        bool write_in_background)
-    : plan_(plan), dir_(target), info_(std::move(info)), worker_(write_in_background) {}
+    : plan_(plan), dir_(target, OutputKind::Bake), info_(std::move(info)), worker_(write_in_background) {}
 
 BakeOutput::~BakeOutput() = default;
 

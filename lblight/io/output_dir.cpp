@@ -5,6 +5,9 @@
 #include <atomic>
 #include <fstream>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "lblight/core/error.h"
 
@@ -19,18 +22,67 @@ std::string unique_suffix() {
 }
 }  // namespace
 
-void StagedDirectory::check_target(const fs::path& target) {
+namespace {
+
+struct KindRules {
+  const char* marker;                      // the file that says what wrote the folder
+  std::vector<const char*> marker_keys;    // members that file's JSON object must have
+  std::vector<const char*> other_files;    // exact names, or ".ext" for any file ending so
+  const char* what;
+};
+
+KindRules rules(OutputKind kind) {
+  if (kind == OutputKind::Bake)
+    return {"manifest.json", {"lblight_version", "models"}, {".vdb", ".lbh"}, "an lblight bake output"};
+  return {"report.json", {"curves", "references"}, {"report.csv", ".svg"}, "an lblight report"};
+}
+
+bool marker_matches(const fs::path& file, const KindRules& r) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return false;
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object()) return false;
+  for (const char* k : r.marker_keys)
+    if (!j.contains(k)) return false;
+  return true;
+}
+
+bool allowed_beside_marker(const fs::directory_entry& e, const KindRules& r) {
+  std::error_code ec;
+  if (!e.is_regular_file(ec) || e.is_symlink(ec)) return false;
+  const std::string name = e.path().filename().string();
+  if (name == r.marker) return true;
+  for (const char* f : r.other_files) {
+    const std::string pat = f;
+    if (pat.front() == '.' ? e.path().extension() == pat : name == pat) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void StagedDirectory::check_target(const fs::path& target, OutputKind kind) {
   std::error_code ec;
   if (!fs::exists(target, ec)) return;
   if (!fs::is_directory(target, ec))
     throw_invalid("output path exists and is not a directory; choose another -o", {target.string(), {}, {}});
-  if (fs::is_empty(target, ec) || fs::exists(target / "manifest.json", ec)) return;
-  throw_invalid("output directory exists, is not empty and holds no lblight manifest.json; refusing to replace it",
-                {target.string(), {}, {}});
+  if (fs::is_empty(target, ec)) return;
+  const KindRules r = rules(kind);
+  if (!marker_matches(target / r.marker, r))
+    throw_invalid(std::string("output directory exists, is not empty and is not ") + r.what + " (no " + r.marker +
+                      " written by lblight); refusing to replace it: choose another -o or remove it",
+                  {target.string(), {}, {}});
+  for (const auto& e : fs::directory_iterator(target, ec))
+    if (!allowed_beside_marker(e, r))
+      throw_invalid(std::string("output directory holds ") + r.what + " and also '" + e.path().filename().string() +
+                        "', which lblight did not write; replacing the folder would delete it: move it or choose "
+                        "another -o",
+                    {target.string(), {}, {}});
+  if (ec) throw_io("cannot list the output directory: " + ec.message(), {target.string(), {}, {}});
 }
 
-StagedDirectory::StagedDirectory(fs::path target) : target_(std::move(target)) {
-  check_target(target_);
+StagedDirectory::StagedDirectory(fs::path target, OutputKind kind) : target_(std::move(target)) {
+  check_target(target_, kind);
   const fs::path abs = fs::absolute(target_).lexically_normal();
   const fs::path parent = abs.parent_path();
   std::error_code ec;

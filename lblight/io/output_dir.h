@@ -7,13 +7,20 @@
 
 namespace lblight {
 
+// What a command writes into its output directory, so that a later run replaces only that.
+enum class OutputKind {
+  Bake,    // manifest.json (lblight_version, models) and .vdb/.lbh files
+  Report,  // report.json (curves, references), report.csv and .svg plots
+};
+
 class StagedDirectory {
  public:
   // Checks that `target` may be (re)placed: it must not exist, be empty, or hold a previous
-  // lblight output (manifest.json). Throws Error(InvalidInput) otherwise.
-  static void check_target(const std::filesystem::path& target);
+  // output of the same kind and nothing else (no folders, no other files). Throws
+  // Error(InvalidInput) otherwise, naming what is in the way: replacing deletes the folder.
+  static void check_target(const std::filesystem::path& target, OutputKind kind);
 
-  explicit StagedDirectory(std::filesystem::path target);
+  StagedDirectory(std::filesystem::path target, OutputKind kind);
   StagedDirectory(const StagedDirectory&) = delete;
   StagedDirectory& operator=(const StagedDirectory&) = delete;
   ~StagedDirectory();

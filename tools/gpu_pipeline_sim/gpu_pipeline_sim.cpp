@@ -200,7 +200,7 @@ int run(const std::string& scene_file, const std::string& reference, const std::
         Precision precision) {
   const auto t0 = Clock::now();
   const Scene scene = load_scene(scene_file);
-  StagedDirectory::check_target(output);
+  StagedDirectory::check_target(output, OutputKind::Bake);
   Reference ref;
   auto starting = std::async(std::launch::async, [&] { return std::make_unique<SimBackend>(m, ref); });
   const BakePlan plan = make_plan(scene);
