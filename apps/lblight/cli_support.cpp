@@ -8,6 +8,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 
 #include "lblight/core/error.h"
@@ -26,6 +27,32 @@ extern "C" void on_signal(int sig) {
 void install_signal_handlers() {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+}
+
+CLI::Validator finite_range(double lo, double hi) {
+  auto text = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return std::string(buf);
+  };
+  const std::string range = text(lo) + " to " + text(hi);
+  return CLI::Validator(
+      [lo, hi, range](std::string& s) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(s.c_str(), &end);
+        if (end == s.c_str() || *end != '\0') return "'" + s + "' is not a number";
+        if (!std::isfinite(v)) return "value " + s + " is not a finite number; allowed: " + range;
+        if (v < lo || v > hi) return "value " + s + " is out of range; allowed: " + range;
+        return {};
+      },
+      "FLOAT in " + range);
+}
+
+std::string supported_precisions(const Backend& backend) {
+  std::string out;
+  for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})
+    if (backend.supports(p)) out += (out.empty() ? "" : ", ") + std::string(to_string(p));
+  return out;
 }
 
 void setup_logging(int verbosity) {

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "lblight/backend/backend.h"
 #include "lblight/scene/scene.h"
 
@@ -31,6 +33,13 @@ std::string format_seconds(double s);
 std::string format_error(double e);      // "3.2e-05", or "n/a" when not estimable
 std::string format_bytes(double bytes);  // "1.23 GiB"
 std::string format_direction(const std::array<int, 3>& d);
+
+// A number option's check: finite and within [lo, hi] (CLI::Range lets NaN through, since every
+// comparison with NaN is false).
+CLI::Validator finite_range(double lo, double hi);
+
+// "float32, float64" for the CPU: what `--precision` may be on this backend.
+std::string supported_precisions(const Backend& backend);
 
 // "--iterations paper|auto|N"
 void parse_iterations(const std::string& text, IterationMode& mode, int& steps);

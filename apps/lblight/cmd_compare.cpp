@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
 #include "lblight/core/relative_gap.h"
@@ -102,7 +103,7 @@ Command add_compare_command(CLI::App& app, const GlobalOptions&) {
   cmd->add_option("reference", args->reference, "Reference output directory (with manifest.json)")->required();
   cmd->add_option("other", args->other, "Output directory to compare against it")->required();
   cmd->add_option("--tolerance", args->tolerance, "Largest relative difference allowed (default 1e-5)")
-      ->check(CLI::Range(0.0, 1e30));
+      ->check(finite_range(0.0, 1e30));
   return {cmd, [args] { return run_compare(*args); }};
 }
 

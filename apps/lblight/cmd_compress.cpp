@@ -95,7 +95,7 @@ Command add_compress_command(CLI::App& app, const GlobalOptions&) {
                   "Drop detail coefficients below this magnitude (absolute, or with --relative a fraction of each "
                   "grid's largest |value|); 0 is lossless")
       ->required()
-      ->check(CLI::Range(0.0, 1e30));
+      ->check(finite_range(0.0, 1e30));
   cmd->add_flag("--relative", args->relative, "Threshold relative to each grid's largest |value| (e.g. 0.01 = 1%)");
   cmd->add_option("--coefficients", args->coefficients,
                   "Storage of kept coefficients: f32 (every coefficient as 3 floats, as 001), q8 (block average as "

@@ -24,7 +24,7 @@ void SolveOptions::add_to(CLI::App& cmd) {
                  "(2 x longest lattice edge, 000 sec. 3.1), or a fixed count (default: the scene's)");
   cmd.add_option("--tolerance", tolerance,
                  "Target relative error for --iterations auto (default: the scene's, else 1e-4)")
-      ->check(CLI::Range(1e-15, 0.5));
+      ->check(finite_range(1e-15, 0.5));
   cmd.add_option("--method", method,
                  "Steady-state solver: plain (iterate the LB step, as the papers) or bicgstab (Krylov solver for "
                  "the same fixed point; needs --iterations auto) (default: the scene's)")

@@ -201,6 +201,11 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
     StepPolicy& st = mp.steps;
     st.mode = ov.mode.value_or(scene.solver.mode);
     st.method = ov.method.value_or(scene.solver.method);
+    if (st.method == SolverMethod::BiCGStab && st.mode != IterationMode::Auto)
+      throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate), not " +
+                        std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +
+                        "; set --iterations auto or solver.iterations \"auto\"",
+                    {scene.file.string(), "/solver/method", {}});
     st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
     st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
                                                         : std::clamp((longest + 2) / 4, 4, 16);

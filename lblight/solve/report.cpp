@@ -32,7 +32,7 @@ ModelPlan single(const ModelPlan& mp, const SolutionPlan& sol, int distinct_chan
 // float64 on the CPU: BiCGStab to a tiny residual, then plain checks until the estimate is below
 // the reference tolerance. Totals in double (from the raw state).
 std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, double tolerance,
-                                     ReportReference& info) {
+                                     const std::atomic<bool>* cancel, ReportReference& info) {
   const auto t0 = Clock::now();
   auto solver = cpu.create(sub.lattice, sub.channels, {Precision::Float64, 1, StoreMode::Auto});
   solver->reset({{0, sub.solutions[0].boundary}});
@@ -41,7 +41,7 @@ std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, d
   double residual = 1e-10;
   const int k = sub.steps.check_interval;
   for (int round = 0; round < 6; ++round) {
-    info.steps += bicgstab(*solver, residual, 400 * sub.lattice.dims.longest()).steps;
+    info.steps += bicgstab(*solver, residual, 400 * sub.lattice.dims.longest(), cancel).steps;
     monitor = ConvergenceMonitor(Precision::Float64);
     solver->measure(r);
     for (int c = 0; c < 6; ++c) {
@@ -161,10 +161,12 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
       ReportReference ref{mp.spec->name, sol->grid_name, kChannelNames[colour]};
       log("model '" + mp.spec->name + "' " + sol->grid_name + " (" + kChannelNames[colour] +
           "): float64 reference on the CPU");
-      const std::vector<double> truth = reference_totals(sub, reference_backend, opt.reference_tolerance, ref);
+      const std::vector<double> truth = reference_totals(sub, reference_backend, opt.reference_tolerance, opt.cancel, ref);
       report.references.push_back(ref);
       for (const ReportRunSpec& run : opt.runs) {
-        if (!backend.supports(run.precision)) continue;
+        if (!backend.supports(run.precision))
+          throw_invalid(std::string("run ") + run.label() + ": the " + backend.name() + " backend does not store " +
+                        to_string(run.precision));
         ReportCurve curve;
         curve.model = mp.spec->name;
         curve.solution = sol->grid_name;
@@ -178,6 +180,7 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
         CurveRecorder recorder(truth, curve);
         BakeOptions bo;
         bo.precision = run.precision;
+        bo.cancel = opt.cancel;
         bake_model(r, backend, bo, recorder);
         summarise(curve, mp.steps.tolerance);
         report.curves.push_back(std::move(curve));

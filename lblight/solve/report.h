@@ -2,6 +2,8 @@
 // check, with a converged float64 reference, next to the solver's own error estimate.
 #pragma once
 
+#include <atomic>
+
 #include <functional>
 #include <string>
 #include <vector>
@@ -23,6 +25,7 @@ struct ReportOptions {
   int channel = -1;                  // colour channel; -1 = the one with the highest albedo (slowest)
   double reference_tolerance = 1e-8;
   double depth = 20.0;               // runs continue to tolerance / depth to show the curve below it
+  const std::atomic<bool>* cancel = nullptr;  // checked between steps: Error(Cancelled) when set
 };
 
 struct ReportPoint {
