@@ -138,6 +138,24 @@ TEST_CASE("bake and report replace only their own earlier output, never a folder
   CHECK(read_text(tmp / "ext" / "src" / "main.js") == "code");
 }
 
+TEST_CASE("A signal stops a bake with exit 130 and leaves nothing behind", "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "slow.json", R"({"version": 1, "models": [{"name": "c", "material": "cloud",
+      "density": {"type": "procedural", "resolution": 40}}], "solver": {"iterations": 1000000}})");
+  // INT and TERM from a user or scheduler, HUP from a closed terminal, PIPE from a reader that
+  // went away: each must remove the staging folder (the default action would kill it in place)
+  for (const char* sig : {"INT", "TERM", "HUP", "PIPE"}) {
+    INFO("SIG" << sig);
+    const CliResult r = run_cli(std::string("bake slow.json -o out -q >/dev/null 2>&1 & p=$!; sleep 1; kill -") + sig +
+                                    " $p; wait $p",
+                                tmp.path());
+    CHECK(r.exit_code == 130);
+    std::vector<std::string> left;
+    for (const auto& e : fs::directory_iterator(tmp.path())) left.push_back(e.path().filename().string());
+    CHECK(left == std::vector<std::string>{"slow.json"});
+  }
+}
+
 TEST_CASE("validate prints the plan without writing anything", "[cli]") {
   TempDir tmp;
   write_text(tmp / "tiny.json", kTinyScene);

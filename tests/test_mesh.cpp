@@ -545,6 +545,11 @@ TEST_CASE("lblight voxelize writes density and brown grids that reopen with Open
   const CliResult missing = run_cli("voxelize nothere.obj", tmp.path());
   CHECK(missing.exit_code == 2);
   CHECK(missing.err.find("does not exist") != std::string::npos);
+  // the output must be a .vdb: "-o box.obj" would have replaced the input mesh with a VDB
+  const std::string mesh_before = read_text(tmp / "box.obj");
+  CHECK(run_cli("voxelize box.obj -r 4 -o box.obj", tmp.path()).exit_code == 2);
+  CHECK(read_text(tmp / "box.obj") == mesh_before);
+  CHECK(run_cli("voxelize box.obj -r 4 -o box.txt", tmp.path()).exit_code == 2);
   int leftovers = 0;
   for (const auto& e : fs::directory_iterator(tmp.path())) leftovers += e.path().filename().string()[0] == '.';
   CHECK(leftovers == 0);

@@ -20,13 +20,18 @@ std::atomic<bool> g_interrupted{false};
 namespace {
 extern "C" void on_signal(int sig) {
   g_interrupted.store(true);
-  std::signal(sig, SIG_DFL);  // a second signal ends the process at once
+  // A second INT/TERM/HUP ends the process at once. A broken pipe (stdout's reader gone) would
+  // raise SIGPIPE again on the next write, before the output is cleaned up: ignore it from now on.
+  std::signal(sig, sig == SIGPIPE ? SIG_IGN : SIG_DFL);
 }
 }  // namespace
 
 void install_signal_handlers() {
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE}) std::signal(sig, on_signal);
+}
+
+void throw_if_interrupted() {
+  if (g_interrupted.load()) throw Error(ErrorCategory::Cancelled, "interrupted");
 }
 
 CLI::Validator finite_range(double lo, double hi) {

@@ -12,9 +12,12 @@
 
 namespace lblight::cli {
 
-// Set by SIGINT/SIGTERM; long-running commands poll it and stop cleanly.
+// Set by SIGINT, SIGTERM, SIGHUP (terminal closed) and SIGPIPE (stdout's reader gone);
+// long-running commands poll it and stop cleanly, removing what they had started to write.
 extern std::atomic<bool> g_interrupted;
 void install_signal_handlers();
+// Throws Error(Cancelled) once a signal came: commands call it before putting output in place.
+void throw_if_interrupted();
 
 void setup_logging(int verbosity);  // -1 quiet, 0 normal, 1 verbose, 2 trace
 

@@ -51,8 +51,13 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   const fs::path folder = out.has_parent_path() ? out.parent_path() : fs::path(".");
   if (!fs::is_directory(folder)) throw_invalid("output folder " + folder.string() + " does not exist");
   if (fs::is_directory(out)) throw_invalid("output " + out.string() + " is a folder; give a .vdb file name");
+  if (out.extension() != ".vdb") throw_invalid("the output must end in .vdb", {out.string(), {}, {}});
+  std::error_code same_ec;
+  if (fs::exists(out) && fs::equivalent(a.mesh, out, same_ec))
+    throw_invalid("input and output are the same file", {out.string(), {}, {}});
 
   const MeshVoxels mv = voxelize_mesh_source(src, a.padding, {}, a.threads);
+  throw_if_interrupted();  // the voxeliser does not poll; a signal during it still writes nothing
   const ModelGrid& g = mv.voxels.grid;
   const VoxelizeStats& st = mv.voxels.stats;
 
@@ -91,6 +96,7 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   const fs::path tmp = folder / ("." + out.filename().string() + ".tmp-" + std::to_string(::getpid()));
   try {
     write_vdb(tmp, frame, grids, meta);
+    throw_if_interrupted();
     fs::rename(tmp, out);
   } catch (...) {
     std::error_code ec;
