@@ -256,6 +256,10 @@ TEST_CASE("compress, decompress and inspect .lbh from the command line", "[lbh][
   const CliResult nog = run_cli("compress out/shrub.vdb --threshold 0 --grids B07 -o x.lbh", tmp.path());
   CHECK(nog.exit_code == 2);
   CHECK(nog.err.find("B07") != std::string::npos);
+  const CliResult twice = run_cli("compress out/shrub.vdb --threshold 0 --grids B00,B00 -o x.lbh", tmp.path());
+  CHECK(twice.exit_code == 2);  // decompress could not write two grids of one name
+  CHECK(twice.err.find("listed twice") != std::string::npos);
+  CHECK_FALSE(fs::exists(tmp / "x.lbh"));
   std::string bytes = read_binary(tmp / "lossless.lbh");
   write_text(tmp / "cut.lbh", bytes.substr(0, bytes.size() / 2));
   const CliResult cut = run_cli("decompress cut.lbh -o cut.vdb", tmp.path());

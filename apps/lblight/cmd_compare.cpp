@@ -65,8 +65,11 @@ int compare_outputs(const CompareArgs& a) {
         it->at("lattice").at("index_min") != model.at("lattice").at("index_min"))
       throw_invalid("model '" + name + "' is on another lattice than in " + ref_dir.string(),
                     {other_dir.string(), {}, {}});
-    if (model.at("file").is_null() || it->at("file").is_null())
-      throw_invalid("model '" + name + "' has no .vdb in one of the outputs", {other_dir.string(), {}, {}});
+    for (const auto& [m, dir] : {std::pair{&model, &ref_dir}, std::pair{&*it, &other_dir}})
+      if (m->at("file").is_null())
+        throw_invalid("model '" + name + "' has no .vdb in this output (baked with \"output\": {\"vdb\": false}); "
+                      "compare reads the .vdb grids",
+                      {dir->string(), {}, {}});
     const fs::path fa = ref_dir / model.at("file").get<std::string>();
     const fs::path fb = other_dir / it->at("file").get<std::string>();
     for (const auto& s : model.at("solutions")) {

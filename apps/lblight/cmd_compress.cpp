@@ -1,6 +1,7 @@
 // lblight compress: the Vec3f grids of a .vdb into Haar-compressed sub-block streams (.lbh).
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <sstream>
@@ -42,8 +43,14 @@ int run_compress(const CompressArgs& a) {
   if (!a.grids.empty()) {
     std::stringstream ss(a.grids);
     std::string g;
-    while (std::getline(ss, g, ','))
-      if (!g.empty()) grids.push_back(g);
+    while (std::getline(ss, g, ',')) {
+      if (g.empty()) continue;
+      if (std::find(grids.begin(), grids.end(), g) != grids.end())
+        throw_invalid("grid '" + g + "' is listed twice (a stream per grid name; decompress could not name both)",
+                      {"--grids", {}, {}});
+      grids.push_back(g);
+    }
+    if (grids.empty()) throw_invalid("no grid names in '" + a.grids + "'; give e.g. B00,B06", {"--grids", {}, {}});
   }
   const LbhFileContents c =
       compress_vdb(in, {a.threshold, a.relative, *parse_lbh_coefficients(a.coefficients)}, grids, a.threads);

@@ -172,11 +172,11 @@ nlohmann::json output_summary(const fs::path& dir) {
   }
   m["kind"] = "output";
   m["missing_files"] = nlohmann::json::array();
-  for (const auto& model : m.value("models", nlohmann::json::array())) {
-    if (!fs::exists(dir / model.value("file", ""))) m["missing_files"].push_back(model.value("file", ""));
-    if (model.contains("lbh_file") && !fs::exists(dir / model.value("lbh_file", "")))
-      m["missing_files"].push_back(model.value("lbh_file", ""));
-  }
+  // "file" or "lbh_file" is null (or absent) when the scene did not ask for that file
+  for (const auto& model : m.value("models", nlohmann::json::array()))
+    for (const char* key : {"file", "lbh_file"})
+      if (model.contains(key) && model[key].is_string() && !fs::exists(dir / model[key].get<std::string>()))
+        m["missing_files"].push_back(model[key]);
   return m;
 }
 
@@ -190,7 +190,7 @@ std::string output_text(const nlohmann::json& m, const fs::path& dir) {
   for (const auto& model : m["models"])
     for (const auto& sol : model["solutions"]) {
       const auto d = sol["direction"];
-      t.add({model["name"], model["file"], sol["grid"],
+      t.add({model["name"], model["file"].is_string() ? model["file"].get<std::string>() : model.value("lbh_file", std::string("-")), sol["grid"],
              format_direction({d[0].get<int>(), d[1].get<int>(), d[2].get<int>()}), sol["iterations"].dump(),
              format_seconds(sol["seconds"].get<double>()),
              sol["error_estimate"].is_null() ? "n/a" : format_error(sol["error_estimate"].get<double>())});

@@ -110,7 +110,8 @@ void decompress_lbh(const std::filesystem::path& lbh_path, const std::filesystem
   std::error_code ec;
   std::filesystem::rename(tmp, vdb, ec);
   if (ec) {
-    std::filesystem::remove(tmp, ec);
+    std::error_code ignore;
+    std::filesystem::remove(tmp, ignore);
     throw_io("cannot move the decompressed file into place: " + ec.message(), {vdb.string(), {}, {}});
   }
 }

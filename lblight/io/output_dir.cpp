@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -122,13 +124,13 @@ void write_file_atomically(const fs::path& file, const std::string& text) {
   const fs::path tmp = file.parent_path() / ("." + file.filename().string() + ".tmp-" + unique_suffix());
   {
     std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw_io("cannot create file", {tmp.string(), {}, {}});
+    if (!out) throw_io(std::string("cannot create file: ") + std::strerror(errno), {file.string(), {}, {}});
     out << text;
     out.flush();
     if (!out) {
       std::error_code ec;
       fs::remove(tmp, ec);
-      throw_io("cannot write file (disk full?)", {tmp.string(), {}, {}});
+      throw_io("cannot write file (disk full?)", {file.string(), {}, {}});
     }
   }
   std::error_code ec;

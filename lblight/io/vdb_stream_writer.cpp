@@ -1,5 +1,6 @@
 #include "lblight/io/vdb_stream_writer.h"
 
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <exception>
@@ -168,7 +169,7 @@ VdbStreamWriter::VdbStreamWriter(const std::filesystem::path& file, const DenseF
   s.transform = to_vdb_transform(frame.index_to_world);
   s.announced = grid_count;
   s.os.open(file, std::ios::out | std::ios::binary | std::ios::trunc);
-  if (!s.os) throw_io("cannot create VDB file", s.where());
+  if (!s.os) throw_io(std::string("cannot create VDB file: ") + std::strerror(errno), s.where());
   openvdb::MetaMap meta;
   set_metadata(meta, file_metadata);
   try {
