@@ -550,6 +550,13 @@ TEST_CASE("lblight voxelize writes density and brown grids that reopen with Open
   CHECK(run_cli("voxelize box.obj -r 4 -o box.obj", tmp.path()).exit_code == 2);
   CHECK(read_text(tmp / "box.obj") == mesh_before);
   CHECK(run_cli("voxelize box.obj -r 4 -o box.txt", tmp.path()).exit_code == 2);
+  // nodes narrower than OpenVDB transforms hold: an input error before any work, not a failed write
+  write_text(tmp / "tiny.obj", "v 0 0 0\nv 0.001 0 0\nv 0 0.001 0\nf 1 2 3\n");
+  const CliResult small = run_cli("voxelize tiny.obj -r 128 -o tiny.vdb", tmp.path());
+  CHECK(small.exit_code == 2);
+  CHECK(small.err.find("allowed: at least 2e-05") != std::string::npos);
+  CHECK(run_cli("voxelize tiny.obj -r 32 -o tiny.vdb", tmp.path()).exit_code == 0);  // 3.1e-05 wide
+  fs::remove(tmp / "tiny.vdb");
   int leftovers = 0;
   for (const auto& e : fs::directory_iterator(tmp.path())) leftovers += e.path().filename().string()[0] == '.';
   CHECK(leftovers == 0);

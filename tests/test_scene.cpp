@@ -75,6 +75,8 @@ TEST_CASE("Every bad field is named by its JSON path", "[scene]") {
   // so is nesting deeper than any scene needs (printing such a value recursed off the stack)
   CHECK(error_path(std::string(100000, '[') + std::string(100000, ']')).rfind("/0/0/0/", 0) == 0);
   CHECK(error_path(with_model_field(R"("material": "granite")")) == "/models/0/material");
+  CHECK(error_path(R"({"version": 1, "models": [{"name": "c", "material": "cloud",
+      "density": {"type": "procedural", "size": 1e-4, "resolution": 48}}]})") == "/models/0/density/size");
   CHECK(error_path(with_model_field(R"("material": "cloud", "margin": 0)")) == "/models/0/margin");
   CHECK(error_path(with_model_field(R"("material": "cloud", "colour": 1)")) == "/models/0/colour");
   CHECK(error_path(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural", "resolution": 2},

@@ -1,5 +1,7 @@
 #include "lblight/core/error.h"
 
+#include <sstream>
+
 namespace lblight {
 
 namespace {
@@ -33,6 +35,13 @@ int exit_code_for(ErrorCategory category) {
     case ErrorCategory::Cancelled: return 130;
     default: return 1;
   }
+}
+
+std::string message_number(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
 }
 
 }  // namespace lblight

@@ -40,6 +40,9 @@ class Error : public std::runtime_error {
 [[noreturn]] void throw_invalid(const std::string& message, Location where = {});
 [[noreturn]] void throw_io(const std::string& message, Location where = {});
 
+// A number for a message: 6 significant digits, as a user would write it (2e-05, 0.125, 1e+30).
+std::string message_number(double v);
+
 int exit_code_for(ErrorCategory category);
 
 }  // namespace lblight

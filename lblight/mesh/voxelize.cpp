@@ -236,6 +236,11 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
   // Cubic nodes: `resolution` along the longest edge, centred on the box along the others.
   const int R = opt.resolution, S = opt.supersample, P = opt.padding;
   const double h = longest / R, hf = h / S;
+  if (!(h >= kMinNodeSize))
+    throw_invalid(mesh.source + ": nodes would be " + message_number(h) + " world units wide (box " +
+                      message_number(longest) + " / resolution " + std::to_string(R) + "); allowed: at least " +
+                      message_number(kMinNodeSize) + " (OpenVDB transforms): scale the mesh up or lower the resolution",
+                  where);
   int n[3];
   Vec3 origin;  // world position of the corner of node (0, 0, 0)
   for (int a = 0; a < 3; ++a) {

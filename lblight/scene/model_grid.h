@@ -14,6 +14,10 @@ namespace lblight {
 inline constexpr std::uint8_t kMaterialMedium = 0;  // cloud medium, plastic, or leaf ("green")
 inline constexpr std::uint8_t kMaterialWood = 1;    // wood ("brown")
 
+// Smallest node edge (world units) an output can have: OpenVDB refuses transforms whose scale
+// is below ~1e-5 ("nearly singular"), which would fail only when the .vdb is written.
+inline constexpr double kMinNodeSize = 2e-5;
+
 struct ModelGrid {
   Dims dims;                               // nodes of the density grid (no margin)
   std::array<int, 3> index_min{0, 0, 0};   // index-space coordinate of node (0, 0, 0)

@@ -7,6 +7,7 @@
 
 #include "lblight/core/hash.h"
 #include "lblight/scene/json_reader.h"
+#include "lblight/scene/model_grid.h"
 #include "lblight/scene/scene.h"
 
 namespace lblight {
@@ -164,6 +165,12 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     d.procedural.resolution = static_cast<int>(r.integer_or("resolution", 48, 4, 1024));
     d.procedural.seed = static_cast<std::uint64_t>(r.integer_or("seed", 1, 0, (1ll << 53)));
     d.procedural.size = r.number_or("size", 1.0, 1e-9, 1e9, "a positive length");
+    if (d.procedural.size / d.procedural.resolution < kMinNodeSize)
+      r.fail("size " + message_number(d.procedural.size) + " at resolution " +
+                 std::to_string(d.procedural.resolution) + " makes nodes narrower than " + message_number(kMinNodeSize) +
+                 " world units, which OpenVDB transforms cannot hold; allowed: size >= resolution x " +
+                 message_number(kMinNodeSize),
+             "size");
   } else if (type == "vdb") {
     r.only_keys({"type", "path", "grid", "wood_grid", "density_scale"});
     d.type = SourceType::Vdb;

@@ -16,13 +16,6 @@ std::string voxel_string(const ModelGrid& g, std::size_t index) {
 }
 
 namespace {
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
 Location source_location(const ModelSpec& m, const Scene& scene, const ModelGrid& g, std::size_t index) {
   Location where{scene.file.string(), m.density.json_path, voxel_string(g, index)};
   return where;
@@ -39,12 +32,12 @@ void check_density_values(const ModelSpec& m, const ModelGrid& g, const Scene& s
   for (std::size_t i = 0; i < g.density.size(); ++i) {
     const float d = g.density[i];
     if (!std::isfinite(d))
-      throw_invalid("model '" + m.name + "': " + source_name(m) + " holds " + fmt(d) +
+      throw_invalid("model '" + m.name + "': " + source_name(m) + " holds " + message_number(d) +
                         "; allowed: finite densities in [0, 1]",
                     source_location(m, scene, g, i));
     if (d < 0.0f || d > 1.0f)
-      throw_invalid("model '" + m.name + "': " + source_name(m) + " has density " + fmt(d) + " after density_scale " +
-                        fmt(m.density.density_scale) + "; allowed: 0 <= density <= 1 (lower density_scale)",
+      throw_invalid("model '" + m.name + "': " + source_name(m) + " has density " + message_number(d) + " after density_scale " +
+                        message_number(m.density.density_scale) + "; allowed: 0 <= density <= 1 (lower density_scale)",
                     source_location(m, scene, g, i));
   }
 }
@@ -75,7 +68,7 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       if (rst >= 2.0) {
         Location where{scene.file.string(), m.json_path + field, voxel_string(g, st.max_index[k])};
         throw_invalid("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
-                          ": rho * sigma_t = " + fmt(rst) + " (rho " + fmt(rho) + ", sigma_t " + fmt(p.sigma_t()) +
+                          ": rho * sigma_t = " + message_number(rst) + " (rho " + message_number(rho) + ", sigma_t " + message_number(p.sigma_t()) +
                           "); allowed: rho * sigma_t < 2, where the LB diffusion coefficient " +
                           "((2 / sigma_t) - 1) / (4 (1 + sigma_a)) of 000 eq. (4) stays positive",
                       where);
@@ -86,9 +79,9 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       if (radius > 1.0 + 1e-9) {
         Location where{scene.file.string(), m.json_path + field, voxel_string(g, st.max_index[k])};
         throw_invalid("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
-                          ": with g = " + fmt(p.g) + " one collision at rho " + fmt(rho) + " amplifies a pattern of " +
-                          "directions by " + fmt(radius) + " per step (spectral radius of 1 + rho * Omega; sigma_a " +
-                          fmt(p.sigma_a) + ", sigma_s " + fmt(p.sigma_s) + ", rho * sigma_t = " + fmt(rst) +
+                          ": with g = " + message_number(p.g) + " one collision at rho " + message_number(rho) + " amplifies a pattern of " +
+                          "directions by " + message_number(radius) + " per step (spectral radius of 1 + rho * Omega; sigma_a " +
+                          message_number(p.sigma_a) + ", sigma_s " + message_number(p.sigma_s) + ", rho * sigma_t = " + message_number(rst) +
                           "); allowed: at most 1, else the scheme diverges (lower sigma_s or the density, or raise " +
                           "g; at g = -1 this needs rho * (sigma_a + 2 sigma_s) < 2)",
                       where);
@@ -96,7 +89,7 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       const double gain = min_diagonal_gain(build_omega(p), rho);
       if (gain < 0.0)
         warnings.push_back("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
-                           ": 1 + rho * Omega_mm = " + fmt(gain) +
+                           ": 1 + rho * Omega_mm = " + message_number(gain) +
                            " < 0, so values can go negative (spec sec. 6), in transients and, with absorption, " +
                            "in the converged result (docs/stability.md)");
     }
