@@ -115,6 +115,15 @@ int run_validate(const ValidateArgs& args) {
     text << "\n  memory: " << format_bytes(memory) << " on the " << backend->name() << " backend (" << batch
          << " system(s) of " << format_bytes(static_cast<double>(per_system)) << "), " << format_bytes(host_results)
          << " of results on the host\n";
+    // The scene may be meant for a bigger machine, so this is a warning; bake needs the lattice and
+    // one system within 90% of what is free (batch_capacity).
+    const double available = static_cast<double>(backend->available_bytes());
+    const bool fits = static_cast<double>(per_lattice + per_system) <= 0.9 * available;
+    if (!fits)
+      spdlog::warn("model '{}': needs at least {} on the {} backend but {} is available here; bake would fail on "
+                   "this machine (lower the resolution or use one with more memory)",
+                   mp.spec->name, format_bytes(static_cast<double>(per_lattice + per_system)), backend->name(),
+                   format_bytes(available));
     if (ups > 0)
       text << "  estimated run time: " << format_seconds(seconds) << " s (" << mp.systems() << " systems x ~"
            << static_cast<long long>(mp.estimated_steps) << " steps at " << format_seconds(ups / 1e6)
@@ -134,6 +143,7 @@ int run_validate(const ValidateArgs& args) {
     m["savings"] = savings_json(mp);
     m["steps"] = {{"mode", to_string(mp.steps.mode)}, {"estimated_per_solution", mp.estimated_steps}};
     m["memory_bytes"] = memory;
+    m["fits_available_memory"] = fits;
     m["estimated_seconds"] = seconds;
     out["models"].push_back(m);
   }
