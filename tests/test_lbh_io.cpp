@@ -260,6 +260,18 @@ TEST_CASE("compress, decompress and inspect .lbh from the command line", "[lbh][
   CHECK(twice.exit_code == 2);  // decompress could not write two grids of one name
   CHECK(twice.err.find("listed twice") != std::string::npos);
   CHECK_FALSE(fs::exists(tmp / "x.lbh"));
+  // a truncated .vdb (an interrupted copy) is named as such: OpenVDB alone listed its grids as whole
+  const std::string vdb_bytes = read_binary(tmp / "out" / "shrub.vdb");
+  for (std::size_t cut : {std::size_t{1}, vdb_bytes.size() / 2, vdb_bytes.size() - 20}) {
+    INFO("cut " << cut << " bytes");
+    write_text(tmp / "trunc.vdb", vdb_bytes.substr(0, vdb_bytes.size() - cut));
+    for (const char* cmd : {"inspect trunc.vdb", "compress trunc.vdb --threshold 0 -o cutv.lbh"}) {
+      const CliResult r = run_cli(cmd, tmp.path());
+      CHECK(r.exit_code == 2);
+      CHECK((r.err.find("truncated") != std::string::npos || r.err.find("cut short") != std::string::npos));
+    }
+  }
+  CHECK_FALSE(fs::exists(tmp / "cutv.lbh"));
   std::string bytes = read_binary(tmp / "lossless.lbh");
   write_text(tmp / "cut.lbh", bytes.substr(0, bytes.size() / 2));
   const CliResult cut = run_cli("decompress cut.lbh -o cut.vdb", tmp.path());

@@ -1,9 +1,11 @@
 #include "lblight/io/vdb_io.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/io/GridDescriptor.h>
 #include <openvdb/tools/Dense.h>
 
 #include <cmath>
+#include <fstream>
 #include <mutex>
 
 // lblight's dense arrays have x fastest: OpenVDB calls that LayoutXYZ (offset i + j*mY + k*mZ),
@@ -66,9 +68,56 @@ std::array<double, 16> from_vdb_transform(const openvdb::math::Transform& t, con
   return m;
 }
 
+// Reads a .vdb's header and grid descriptors (as io::File::open does) and checks that every grid
+// ends inside the file. OpenVDB itself lists a truncated file's grids as if whole, and reading
+// one can take gigabytes from the garbage sizes at the cut. Archive's header reader is protected:
+// this subclass exists to call it.
+class CompletenessCheck : public openvdb::io::Archive {
+ public:
+  void run(const std::filesystem::path& path, const Location& where) {
+    std::error_code ec;
+    const auto size = static_cast<std::int64_t>(std::filesystem::file_size(path, ec));
+    if (ec) throw_io("cannot read file: " + ec.message(), where);
+    std::ifstream is(path, std::ios::binary);
+    if (!is) throw_io("cannot open file", where);
+    try {
+      readHeader(is);
+      setFormatVersion(is);
+      setLibraryVersion(is);
+      setDataCompression(is);
+      if (!is) throw_invalid("not a readable OpenVDB file: the header is cut short", where);
+      if (!inputHasGridOffsets()) return;  // very old files: nothing to check against
+      openvdb::MetaMap meta;
+      meta.readMeta(is);
+      const std::int32_t count = readGridCount(is);
+      for (std::int32_t i = 0; i < count; ++i) {
+        openvdb::io::GridDescriptor gd;
+        gd.read(is);
+        if (!is || gd.getEndPos() > size || gd.getEndPos() < gd.getGridPos() || gd.getGridPos() < 0)
+          throw_invalid("the file is truncated or corrupt: grid '" + gd.gridName() + "' ends at byte " +
+                            std::to_string(gd.getEndPos()) + " of a " + std::to_string(size) + "-byte file",
+                        where);
+        is.seekg(gd.getEndPos());
+      }
+    } catch (const openvdb::Exception& e) {
+      throw_invalid(std::string("not a readable OpenVDB file (truncated or corrupt?): ") + e.what(), where);
+    } catch (const std::ios_base::failure& e) {
+      throw_invalid(std::string("not a readable OpenVDB file (truncated or corrupt?): ") + e.what(), where);
+    }
+    if (!is) throw_invalid("not a readable OpenVDB file (truncated or corrupt?)", where);
+  }
+  // Archive's interface, unused here
+  openvdb::io::Archive::Ptr copy() const override { return nullptr; }
+};
+
+void check_complete(const std::filesystem::path& path, const Location& where) {
+  CompletenessCheck().run(path, where);
+}
+
 openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where) {
   ensure_initialized();
   if (!std::filesystem::exists(path)) throw_invalid("VDB file " + path.string() + " does not exist", where);
+  check_complete(path, {path.string(), {}, {}});
   openvdb::io::File file(path.string());
   try {
     file.open();
@@ -214,6 +263,7 @@ DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::st
 nlohmann::json inspect_vdb(const std::filesystem::path& file) {
   ensure_initialized();
   const Location where{file.string(), {}, {}};
+  check_complete(file, where);
   openvdb::io::File f(file.string());
   try {
     f.open(false);
