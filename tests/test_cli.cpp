@@ -223,6 +223,10 @@ TEST_CASE("Missing files and bad options are invalid input", "[cli]") {
   CHECK(nan.exit_code == 2);
   CHECK(nan.err.find("not a finite number") != std::string::npos);
   CHECK(run_cli("validate tiny.json --tolerance 0", tmp.path()).exit_code == 2);
+  // an empty value (an unset shell variable) is an error, not the default
+  CHECK(run_cli("validate tiny.json --solutions ''", tmp.path()).exit_code == 2);
+  CHECK(run_cli("bake tiny.json -o ''", tmp.path()).exit_code == 2);
+  CHECK_FALSE(fs::exists(tmp / "tiny-bake"));
   // what bake would refuse, validate refuses too (tiny.json runs "paper" steps)
   const CliResult krylov = run_cli("validate tiny.json --method bicgstab", tmp.path());
   CHECK(krylov.exit_code == 2);

@@ -53,6 +53,10 @@ CLI::Validator finite_range(double lo, double hi) {
       "FLOAT in " + range);
 }
 
+const CLI::Validator kNonEmpty(
+    [](std::string& s) -> std::string { return s.empty() ? "the value is empty; give one or leave the option out" : ""; },
+    "");  // no description: --help keeps showing TEXT
+
 std::string supported_precisions(const Backend& backend) {
   std::string out;
   for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})

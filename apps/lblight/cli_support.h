@@ -41,6 +41,10 @@ std::string format_direction(const std::array<int, 3>& d);
 // comparison with NaN is false).
 CLI::Validator finite_range(double lo, double hi);
 
+// A text option's check: not empty. An empty value (a shell variable that was never set) would
+// otherwise fall back to the default silently, writing somewhere the user did not name.
+extern const CLI::Validator kNonEmpty;
+
 // "float32, float64" for the CPU: what `--precision` may be on this backend.
 std::string supported_precisions(const Backend& backend);
 

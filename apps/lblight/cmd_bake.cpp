@@ -151,7 +151,8 @@ Command add_bake_command(CLI::App& app, const GlobalOptions& global) {
       "when complete.");
   args->solve.add_to(*cmd);
   cmd->add_option("-o,--output", args->output, "Output directory (default: <scene name>-bake); replaced if it holds "
-                                                "a previous lblight output");
+                                                "a previous lblight output")
+      ->check(kNonEmpty);
   return {cmd, [args, &global] { return run_bake(*args, global); }};
 }
 

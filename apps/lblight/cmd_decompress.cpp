@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/compress/vdb_compress.h"
 #include "lblight/core/error.h"
@@ -38,7 +39,7 @@ Command add_decompress_command(CLI::App& app, const GlobalOptions&) {
       "decompress", "Decode every solution of an .lbh into a Vec3f grid of the same name and write them to a .vdb "
                     "(same lattice box and transform as the original).");
   cmd->add_option("input", args->input, "Input .lbh")->required();
-  cmd->add_option("-o,--output", args->output, "Output .vdb")->required();
+  cmd->add_option("-o,--output", args->output, "Output .vdb")->required()->check(kNonEmpty);
   return {cmd, [args] { return run_decompress(*args); }};
 }
 

@@ -140,6 +140,7 @@ Command add_report_command(CLI::App& app, const GlobalOptions&) {
   args->solve.add_to(*cmd);
   cmd->remove_option(cmd->get_option("--solutions"));
   cmd->add_option("--solutions", args->study, "Base solutions to study (default 0,6: ambient and sun from above)")
+      ->check(kNonEmpty)
       ->capture_default_str();
   cmd->add_option("--runs", args->runs,
                   "Runs to compare, as method:precision (default: plain:float32 bicgstab:float32, plus "
@@ -147,7 +148,7 @@ Command add_report_command(CLI::App& app, const GlobalOptions&) {
   cmd->add_option("--channel", args->channel, "Colour channel: auto (the slowest to converge), red, green, blue")
       ->check(CLI::IsMember({"auto", "red", "green", "blue"}))
       ->capture_default_str();
-  cmd->add_option("-o,--output", args->output, "Output directory (default: <scene name>-report)");
+  cmd->add_option("-o,--output", args->output, "Output directory (default: <scene name>-report)")->check(kNonEmpty);
   return {cmd, [args] { return run_report(*args); }};
 }
 

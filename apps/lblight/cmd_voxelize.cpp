@@ -136,7 +136,7 @@ Command add_voxelize_command(CLI::App& app, const GlobalOptions& global) {
       "each node covered by the mesh, 001 sec. 5.1) and a float 'brown' grid (1 where wood outweighs leaves, "
       "001 sec. 4.1). Leaf and wood triangles are told apart by material, group or object name.");
   cmd->add_option("mesh", args->mesh, "Mesh file (.obj)")->required();
-  cmd->add_option("-o,--output", args->out, "Output .vdb file (default: <mesh name>.vdb here)");
+  cmd->add_option("-o,--output", args->out, "Output .vdb file (default: <mesh name>.vdb here)")->check(kNonEmpty);
   cmd->add_option("-r,--resolution", args->resolution, "Nodes along the longest edge of the box")
       ->default_val(64)
       ->check(CLI::Range(1, 8192));
@@ -149,9 +149,11 @@ Command add_voxelize_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--bounds", args->bounds, "World box to voxelize instead of the mesh's: XMIN YMIN ZMIN XMAX YMAX ZMAX")
       ->expected(6);
   cmd->add_option("--leaf-pattern", args->leaf_patterns,
-                  "Name pattern of leaf (green) parts; repeatable; default: leaf leaves foliage needle");
+                  "Name pattern of leaf (green) parts; repeatable; default: leaf leaves foliage needle")
+      ->check(kNonEmpty);
   cmd->add_option("--wood-pattern", args->wood_patterns,
-                  "Name pattern of wood (brown) parts; repeatable; default: bark trunk branch wood stem");
+                  "Name pattern of wood (brown) parts; repeatable; default: bark trunk branch wood stem")
+      ->check(kNonEmpty);
   cmd->add_option("--fill", args->fill, "Fill closed solids: none (surface only), parity or winding")
       ->default_val("none")
       ->check(CLI::IsMember({"none", "parity", "winding"}));

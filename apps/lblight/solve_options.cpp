@@ -18,10 +18,12 @@ void SolveOptions::add_to(CLI::App& cmd) {
       ->capture_default_str();
   cmd.add_option("--device", device, "GPU ordinal for --backend cuda")->check(CLI::Range(0, 64))->capture_default_str();
   cmd.add_option("--solutions", solutions,
-                 "Base solutions to bake: 'all' or indices/ranges such as 0,1,5-7 (default: the scene's)");
+                 "Base solutions to bake: 'all' or indices/ranges such as 0,1,5-7 (default: the scene's)")
+      ->check(kNonEmpty);
   cmd.add_option("--iterations", iterations,
                  "Steps per solution: 'auto' (until the error estimate is below --tolerance), 'paper' "
-                 "(2 x longest lattice edge, 000 sec. 3.1), or a fixed count (default: the scene's)");
+                 "(2 x longest lattice edge, 000 sec. 3.1), or a fixed count (default: the scene's)")
+      ->check(kNonEmpty);
   cmd.add_option("--tolerance", tolerance,
                  "Target relative error for --iterations auto (default: the scene's, else 1e-4)")
       ->check(finite_range(1e-15, 0.5));
