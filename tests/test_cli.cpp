@@ -214,28 +214,28 @@ TEST_CASE("Missing files and bad options are invalid input", "[cli]") {
   CHECK(r.exit_code == 2);
   CHECK(r.err.find("does-not-exist.json") != std::string::npos);
   write_text(tmp / "tiny.json", kTinyScene);
-  CHECK(run_cli("bake tiny.json --iterations forever", tmp.path()).exit_code == 2);
-  CHECK(run_cli("bake tiny.json --solutions 0,25", tmp.path()).exit_code == 2);
-  CHECK(run_cli("bake tiny.json --precision float16 --backend cpu", tmp.path()).exit_code == 2);
+  for (const char* args : {
+           "bake tiny.json --iterations forever", "bake tiny.json --solutions 0,25",
+           "bake tiny.json --precision float16 --backend cpu", "validate tiny.json --tolerance 0",
+           // NaN passes every range comparison: number options check finiteness themselves
+           "bench --backend cpu --size 8 --bandwidth-mib nan",
+           // an empty value (an unset shell variable) is an error, not the default
+           "validate tiny.json --solutions ''", "bake tiny.json -o ''",
+           // a precision the backend cannot store is an error, not an empty table with exit 0
+           "bench --backend cpu --size 8 --precision float16",
+           "report tiny.json --backend cpu --runs plain:float16 -o rep"}) {
+    INFO(args);
+    CHECK(run_cli(args, tmp.path()).exit_code == 2);
+  }
   CHECK_FALSE(fs::exists(tmp / "tiny-bake"));
-  // NaN passes every range comparison: number options check finiteness themselves
+  CHECK_FALSE(fs::exists(tmp / "rep"));
   const CliResult nan = run_cli("validate tiny.json --iterations auto --tolerance nan", tmp.path());
   CHECK(nan.exit_code == 2);
   CHECK(nan.err.find("not a finite number") != std::string::npos);
-  CHECK(run_cli("validate tiny.json --tolerance 0", tmp.path()).exit_code == 2);
-  // an empty value (an unset shell variable) is an error, not the default
-  CHECK(run_cli("validate tiny.json --solutions ''", tmp.path()).exit_code == 2);
-  CHECK(run_cli("bake tiny.json -o ''", tmp.path()).exit_code == 2);
-  CHECK_FALSE(fs::exists(tmp / "tiny-bake"));
   // what bake would refuse, validate refuses too (tiny.json runs "paper" steps)
   const CliResult krylov = run_cli("validate tiny.json --method bicgstab", tmp.path());
   CHECK(krylov.exit_code == 2);
   CHECK(krylov.err.find("/solver/method") != std::string::npos);
-  CHECK(run_cli("bench --backend cpu --size 8 --bandwidth-mib nan", tmp.path()).exit_code == 2);
-  // a precision the backend cannot store is an error, not an empty table with exit 0
-  CHECK(run_cli("bench --backend cpu --size 8 --precision float16", tmp.path()).exit_code == 2);
-  CHECK(run_cli("report tiny.json --backend cpu --runs plain:float16 -o rep", tmp.path()).exit_code == 2);
-  CHECK_FALSE(fs::exists(tmp / "rep"));
 }
 
 TEST_CASE("compare: identical bakes pass, a different precision fails at tolerance 0, mismatches are invalid",
