@@ -30,9 +30,7 @@ void install_signal_handlers() {
   for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE}) std::signal(sig, on_signal);
 }
 
-void throw_if_interrupted() {
-  if (g_interrupted.load()) throw Error(ErrorCategory::Cancelled, "interrupted");
-}
+void throw_if_interrupted() { throw_if_cancelled(&g_interrupted); }
 
 CLI::Validator finite_range(double lo, double hi) {
   auto text = [](double v) {

@@ -37,6 +37,10 @@ int exit_code_for(ErrorCategory category) {
   }
 }
 
+void throw_if_cancelled(const std::atomic<bool>* cancel) {
+  if (cancel && cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
+}
+
 std::string message_number(double v) {
   std::ostringstream s;
   s.precision(6);

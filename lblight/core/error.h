@@ -1,6 +1,7 @@
 // The library's single error type. Only main() turns categories into exit codes.
 #pragma once
 
+#include <atomic>
 #include <stdexcept>
 #include <string>
 
@@ -39,6 +40,8 @@ class Error : public std::runtime_error {
 // Shorthands for the common cases.
 [[noreturn]] void throw_invalid(const std::string& message, Location where = {});
 [[noreturn]] void throw_io(const std::string& message, Location where = {});
+// Error(Cancelled) once *cancel is set (a signal arrived); a null flag never cancels.
+void throw_if_cancelled(const std::atomic<bool>* cancel);
 
 // A number for a message: 6 significant digits, as a user would write it (2e-05, 0.125, 1e+30).
 std::string message_number(double v);

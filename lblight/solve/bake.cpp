@@ -137,7 +137,7 @@ class BatchRunner {
     const BakeProgress ev{&mp_, solutions_, out_.steps, planned, worst, secs, worst_max};
     observer_.progress(ev);
     observer_.inspect(ev, solver_, true);
-    if (opt_.cancel && opt_.cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
+    throw_if_cancelled(opt_.cancel);
     return all_latched;
   }
 

@@ -36,7 +36,7 @@ KrylovResult bicgstab(LatticeSolver& s, double tolerance, int max_steps, const s
   double rho = 1, alpha = 1, omega = 1;
   bool restart = true;
   while (rnorm / bnorm > tolerance && out.steps + 2 <= max_steps) {
-    if (cancel && cancel->load()) throw Error(ErrorCategory::Cancelled, "interrupted");
+    throw_if_cancelled(cancel);
     if (restart) {  // (re)start with the shadow residual equal to the residual
       s.vector_axpby(1.0, kR, 0.0, kRhat);
       s.vector_axpby(0.0, kR, 0.0, kP);
