@@ -11,6 +11,7 @@
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
 #include "lblight/io/bake_output.h"
+#include "lblight/solve/bake.h"
 #include "lblight/solve/calibrate.h"
 
 namespace lblight::cli {
@@ -115,15 +116,18 @@ int run_validate(const ValidateArgs& args) {
     text << "\n  memory: " << format_bytes(memory) << " on the " << backend->name() << " backend (" << batch
          << " system(s) of " << format_bytes(static_cast<double>(per_system)) << "), " << format_bytes(host_results)
          << " of results on the host\n";
-    // The scene may be meant for a bigger machine, so this is a warning; bake needs the lattice and
-    // one system within 90% of what is free (batch_capacity).
-    const double available = static_cast<double>(backend->available_bytes());
-    const bool fits = static_cast<double>(per_lattice + per_system) <= 0.9 * available;
-    if (!fits)
-      spdlog::warn("model '{}': needs at least {} on the {} backend but {} is available here; bake would fail on "
-                   "this machine (lower the resolution or use one with more memory)",
-                   mp.spec->name, format_bytes(static_cast<double>(per_lattice + per_system)), backend->name(),
-                   format_bytes(available));
+    // bake's own memory rule (batch_capacity). The scene may be meant for a bigger machine, so
+    // here it is a warning.
+    bool fits = true;
+    try {
+      BakeOptions bo;
+      bo.precision = precision;
+      batch_capacity(mp, *backend, bo);
+    } catch (const Error& e) {
+      if (e.category() != ErrorCategory::Unavailable) throw;
+      fits = false;
+      spdlog::warn("{}; bake would fail on this machine", e.what());
+    }
     if (ups > 0)
       text << "  estimated run time: " << format_seconds(seconds) << " s (" << mp.systems() << " systems x ~"
            << static_cast<long long>(mp.estimated_steps) << " steps at " << format_seconds(ups / 1e6)
