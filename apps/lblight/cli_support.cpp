@@ -55,6 +55,16 @@ const CLI::Validator kNonEmpty(
     [](std::string& s) -> std::string { return s.empty() ? "the value is empty; give one or leave the option out" : ""; },
     "");  // no description: --help keeps showing TEXT
 
+void check_output_file(const std::filesystem::path& input, const std::filesystem::path& output,
+                       const std::string& extension) {
+  const Location where{output.string(), {}, {}};
+  if (std::filesystem::is_directory(output)) throw_invalid("the output is a folder; give a " + extension + " file name", where);
+  if (output.extension() != extension) throw_invalid("the output must end in " + extension, where);
+  std::error_code ec;
+  if (std::filesystem::exists(output) && std::filesystem::equivalent(input, output, ec))
+    throw_invalid("input and output are the same file", where);
+}
+
 std::string supported_precisions(const Backend& backend) {
   std::string out;
   for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})

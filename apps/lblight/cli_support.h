@@ -2,6 +2,7 @@
 #pragma once
 
 #include <atomic>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,12 @@ CLI::Validator finite_range(double lo, double hi);
 // A text option's check: not empty. An empty value (a shell variable that was never set) would
 // otherwise fall back to the default silently, writing somewhere the user did not name.
 extern const CLI::Validator kNonEmpty;
+
+// An output file name given to a command that writes one file: it must end in `extension` (".vdb"),
+// not be a folder, and not be `input` (which the command would replace). Error(InvalidInput)
+// naming `output` otherwise.
+void check_output_file(const std::filesystem::path& input, const std::filesystem::path& output,
+                       const std::string& extension);
 
 // "float32, float64" for the CPU: what `--precision` may be on this backend.
 std::string supported_precisions(const Backend& backend);

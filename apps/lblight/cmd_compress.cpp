@@ -35,7 +35,7 @@ int run_compress(const CompressArgs& a) {
   if (!fs::exists(in)) throw_invalid("no such file", {in.string(), {}, {}});
   if (in.extension() != ".vdb") throw_invalid("expected an OpenVDB file (.vdb)", {in.string(), {}, {}});
   fs::path out = a.output.empty() ? fs::path(in).replace_extension(".lbh") : fs::path(a.output);
-  if (out.extension() != ".lbh") throw_invalid("the output must end in .lbh", {out.string(), {}, {}});
+  check_output_file(in, out, ".lbh");
   if (a.relative && a.threshold > 1)
     throw_invalid("--threshold " + std::to_string(a.threshold) + " with --relative; allowed: 0..1 (a fraction of each "
                   "solution's maximum)", {"--threshold", {}, {}});

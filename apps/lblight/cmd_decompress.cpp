@@ -22,10 +22,7 @@ int run_decompress(const DecompressArgs& a) {
   const fs::path in = a.input, out = a.output;
   if (!fs::exists(in)) throw_invalid("no such file", {in.string(), {}, {}});
   if (fs::is_directory(in)) throw_invalid("is a folder; give an .lbh file", {in.string(), {}, {}});
-  if (out.extension() != ".vdb") throw_invalid("the output must end in .vdb", {out.string(), {}, {}});
-  if (fs::is_directory(out)) throw_invalid("the output is a folder; give a .vdb file name", {out.string(), {}, {}});
-  std::error_code ec;
-  if (fs::exists(out) && fs::equivalent(in, out, ec)) throw_invalid("input and output are the same file", {out.string(), {}, {}});
+  check_output_file(in, out, ".vdb");
   decompress_lbh(in, out);
   std::cout << "wrote " << out.string() << "\n";
   return 0;

@@ -50,11 +50,7 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   fs::path out = a.out.empty() ? fs::path(fs::path(a.mesh).stem().string() + ".vdb") : fs::path(a.out);
   const fs::path folder = out.has_parent_path() ? out.parent_path() : fs::path(".");
   if (!fs::is_directory(folder)) throw_invalid("output folder " + folder.string() + " does not exist");
-  if (fs::is_directory(out)) throw_invalid("output " + out.string() + " is a folder; give a .vdb file name");
-  if (out.extension() != ".vdb") throw_invalid("the output must end in .vdb", {out.string(), {}, {}});
-  std::error_code same_ec;
-  if (fs::exists(out) && fs::equivalent(a.mesh, out, same_ec))
-    throw_invalid("input and output are the same file", {out.string(), {}, {}});
+  check_output_file(a.mesh, out, ".vdb");
 
   const MeshVoxels mv = voxelize_mesh_source(src, a.padding, {}, a.threads);
   throw_if_interrupted();  // the voxeliser does not poll; a signal during it still writes nothing
