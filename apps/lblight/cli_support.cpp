@@ -65,13 +65,6 @@ void check_output_file(const std::filesystem::path& input, const std::filesystem
     throw_invalid("input and output are the same file", where);
 }
 
-std::string supported_precisions(const Backend& backend) {
-  std::string out;
-  for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})
-    if (backend.supports(p)) out += (out.empty() ? "" : ", ") + std::string(to_string(p));
-  return out;
-}
-
 void setup_logging(int verbosity) {
   auto logger = spdlog::stderr_color_mt("lblight");
   logger->set_pattern("[%H:%M:%S] %^%l%$: %v");

@@ -52,9 +52,6 @@ extern const CLI::Validator kNonEmpty;
 void check_output_file(const std::filesystem::path& input, const std::filesystem::path& output,
                        const std::string& extension);
 
-// "float32, float64" for the CPU: what `--precision` may be on this backend.
-std::string supported_precisions(const Backend& backend);
-
 // "--iterations paper|auto|N"
 void parse_iterations(const std::string& text, IterationMode& mode, int& steps);
 Precision parse_precision(const std::string& text);

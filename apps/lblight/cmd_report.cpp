@@ -54,9 +54,6 @@ int run_report(const ReportArgs& args) {
       if (method != "plain" && method != "bicgstab")
         throw_invalid("--runs '" + r + "': allowed: plain or bicgstab, optionally :float32/:float64/:float16");
       opt.runs.push_back({method == "bicgstab" ? SolverMethod::BiCGStab : SolverMethod::Plain, parse_precision(prec)});
-      if (!backend->supports(opt.runs.back().precision))
-        throw_invalid("--runs '" + r + "': the " + backend->name() + " backend does not store " + prec +
-                      "; allowed here: " + supported_precisions(*backend));
     }
   } else if (backend->supports(Precision::Float16)) {
     opt.runs.push_back({SolverMethod::Plain, Precision::Float16});

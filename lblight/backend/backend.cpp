@@ -16,6 +16,13 @@ const char* to_string(Precision p) {
   return "?";
 }
 
+std::string supported_precisions(const Backend& backend) {
+  std::string out;
+  for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})
+    if (backend.supports(p)) out += (out.empty() ? "" : ", ") + std::string(to_string(p));
+  return out;
+}
+
 void check_geometry(const LatticeGeometry& g, const char* backend) {
   const auto fail = [&](const std::string& what) {
     throw std::logic_error(std::string(backend) + " backend: lattice geometry " + what);

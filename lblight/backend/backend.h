@@ -141,6 +141,9 @@ class Backend {
   virtual std::size_t cache_bytes() const { return 0; }
 };
 
+// "float32, float64" for the CPU: the storage precisions `backend` supports, for messages.
+std::string supported_precisions(const Backend& backend);
+
 // Bytes one lattice update of one system moves at minimum: 19 values in and out, plus the
 // density and material of the node.
 inline double bytes_per_value(Precision p) { return p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0); }

@@ -146,6 +146,10 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
                    const ReportOptions& opt, const std::function<void(const std::string&)>& log) {
   if (!reference_backend.supports(Precision::Float64))
     throw Error(ErrorCategory::Unavailable, "the reference backend must store float64 (use the cpu backend)");
+  for (const ReportRunSpec& run : opt.runs)  // before any solving: the references take a while
+    if (!backend.supports(run.precision))
+      throw_invalid("run '" + run.label() + "': the " + backend.name() + " backend does not store " +
+                    to_string(run.precision) + "; allowed here: " + supported_precisions(backend));
   Report report;
   for (const ModelPlan& mp : plan.models) {
     report.tolerance = mp.steps.tolerance;
@@ -164,9 +168,6 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
       const std::vector<double> truth = reference_totals(sub, reference_backend, opt.reference_tolerance, opt.cancel, ref);
       report.references.push_back(ref);
       for (const ReportRunSpec& run : opt.runs) {
-        if (!backend.supports(run.precision))
-          throw_invalid(std::string("run ") + run.label() + ": the " + backend.name() + " backend does not store " +
-                        to_string(run.precision));
         ReportCurve curve;
         curve.model = mp.spec->name;
         curve.solution = sol->grid_name;
