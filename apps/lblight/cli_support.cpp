@@ -52,13 +52,16 @@ CLI::Validator finite_range(double lo, double hi) {
 }
 
 const CLI::Validator kNonEmpty(
-    [](std::string& s) -> std::string { return s.empty() ? "the value is empty; give one or leave the option out" : ""; },
+    [](std::string& s) -> std::string {
+      return s.empty() ? "the value is empty; give one or leave the option out" : "";
+    },
     "");  // no description: --help keeps showing TEXT
 
 void check_output_file(const std::filesystem::path& input, const std::filesystem::path& output,
                        const std::string& extension) {
   const Location where{output.string(), {}, {}};
-  if (std::filesystem::is_directory(output)) throw_invalid("the output is a folder; give a " + extension + " file name", where);
+  if (std::filesystem::is_directory(output))
+    throw_invalid("the output is a folder; give a " + extension + " file name", where);
   if (output.extension() != extension) throw_invalid("the output must end in " + extension, where);
   std::error_code ec;
   if (std::filesystem::exists(output) && std::filesystem::equivalent(input, output, ec))

@@ -110,7 +110,8 @@ Command add_compress_command(CLI::App& app, const GlobalOptions&) {
                   "needs it; about 2.5x smaller at the same threshold), auto (q8 when the threshold is > 0, else f32)")
       ->check(CLI::IsMember({"auto", "f32", "q8"}))
       ->capture_default_str();
-  cmd->add_option("-o,--output", args->output, "Output .lbh (default: the input with extension .lbh)")->check(kNonEmpty);
+  cmd->add_option("-o,--output", args->output, "Output .lbh (default: the input with extension .lbh)")
+      ->check(kNonEmpty);
   cmd->add_option("--grids", args->grids, "Comma-separated grid names (default: every Vec3f grid)")->check(kNonEmpty);
   cmd->add_option("--threads", args->threads, "Encoder threads (0 = all cores)")->check(CLI::Range(0, 4096));
   cmd->add_flag("--json", args->json, "Print JSON instead of text");

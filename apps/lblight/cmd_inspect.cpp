@@ -187,14 +187,18 @@ std::string output_text(const nlohmann::json& m, const fs::path& dir) {
     << m["backend"].value("description", "?") << ", " << m["backend"].value("precision", "?") << ", "
     << format_seconds(m.value("total_seconds", 0.0)) << " s\n";
   Table t({"model", "file", "solution", "direction", "iterations", "seconds", "error estimate"});
-  for (const auto& model : m["models"])
+  for (const auto& model : m["models"]) {
+    // the .vdb, or the .lbh when the scene wrote no .vdb ("file" is null then)
+    const std::string file =
+        model["file"].is_string() ? model["file"].get<std::string>() : model.value("lbh_file", std::string("-"));
     for (const auto& sol : model["solutions"]) {
       const auto d = sol["direction"];
-      t.add({model["name"], model["file"].is_string() ? model["file"].get<std::string>() : model.value("lbh_file", std::string("-")), sol["grid"],
+      t.add({model["name"], file, sol["grid"],
              format_direction({d[0].get<int>(), d[1].get<int>(), d[2].get<int>()}), sol["iterations"].dump(),
              format_seconds(sol["seconds"].get<double>()),
              sol["error_estimate"].is_null() ? "n/a" : format_error(sol["error_estimate"].get<double>())});
     }
+  }
   s << t.str();
   for (const auto& f : m["missing_files"]) s << "warning: listed file " << f.get<std::string>() << " is missing\n";
   return s.str();

@@ -167,9 +167,9 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     d.procedural.size = r.number_or("size", 1.0, 1e-9, 1e9, "a positive length");
     if (d.procedural.size / d.procedural.resolution < kMinNodeSize)
       r.fail("size " + message_number(d.procedural.size) + " at resolution " +
-                 std::to_string(d.procedural.resolution) + " makes nodes narrower than " + message_number(kMinNodeSize) +
-                 " world units, which OpenVDB transforms cannot hold; allowed: size >= resolution x " +
-                 message_number(kMinNodeSize),
+                 std::to_string(d.procedural.resolution) + " makes nodes narrower than " +
+                 message_number(kMinNodeSize) + " world units, which OpenVDB transforms cannot hold; " +
+                 "allowed: size >= resolution x " + message_number(kMinNodeSize),
              "size");
   } else if (type == "vdb") {
     r.only_keys({"type", "path", "grid", "wood_grid", "density_scale"});

@@ -36,8 +36,9 @@ void check_density_values(const ModelSpec& m, const ModelGrid& g, const Scene& s
                         "; allowed: finite densities in [0, 1]",
                     source_location(m, scene, g, i));
     if (d < 0.0f || d > 1.0f)
-      throw_invalid("model '" + m.name + "': " + source_name(m) + " has density " + message_number(d) + " after density_scale " +
-                        message_number(m.density.density_scale) + "; allowed: 0 <= density <= 1 (lower density_scale)",
+      throw_invalid("model '" + m.name + "': " + source_name(m) + " has density " + message_number(d) +
+                        " after density_scale " + message_number(m.density.density_scale) +
+                        "; allowed: 0 <= density <= 1 (lower density_scale)",
                     source_location(m, scene, g, i));
   }
 }
@@ -68,7 +69,8 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       if (rst >= 2.0) {
         Location where{scene.file.string(), m.json_path + field, voxel_string(g, st.max_index[k])};
         throw_invalid("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
-                          ": rho * sigma_t = " + message_number(rst) + " (rho " + message_number(rho) + ", sigma_t " + message_number(p.sigma_t()) +
+                          ": rho * sigma_t = " + message_number(rst) + " (rho " + message_number(rho) +
+                          ", sigma_t " + message_number(p.sigma_t()) +
                           "); allowed: rho * sigma_t < 2, where the LB diffusion coefficient " +
                           "((2 / sigma_t) - 1) / (4 (1 + sigma_a)) of 000 eq. (4) stays positive",
                       where);
@@ -79,9 +81,10 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       if (radius > 1.0 + 1e-9) {
         Location where{scene.file.string(), m.json_path + field, voxel_string(g, st.max_index[k])};
         throw_invalid("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
-                          ": with g = " + message_number(p.g) + " one collision at rho " + message_number(rho) + " amplifies a pattern of " +
-                          "directions by " + message_number(radius) + " per step (spectral radius of 1 + rho * Omega; sigma_a " +
-                          message_number(p.sigma_a) + ", sigma_s " + message_number(p.sigma_s) + ", rho * sigma_t = " + message_number(rst) +
+                          ": with g = " + message_number(p.g) + " one collision at rho " + message_number(rho) +
+                          " amplifies a pattern of directions by " + message_number(radius) +
+                          " per step (spectral radius of 1 + rho * Omega; sigma_a " + message_number(p.sigma_a) +
+                          ", sigma_s " + message_number(p.sigma_s) + ", rho * sigma_t = " + message_number(rst) +
                           "); allowed: at most 1, else the scheme diverges (lower sigma_s or the density, or raise " +
                           "g; at g = -1 this needs rho * (sigma_a + 2 sigma_s) < 2)",
                       where);

@@ -165,7 +165,8 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
       ReportReference ref{mp.spec->name, sol->grid_name, kChannelNames[colour]};
       log("model '" + mp.spec->name + "' " + sol->grid_name + " (" + kChannelNames[colour] +
           "): float64 reference on the CPU");
-      const std::vector<double> truth = reference_totals(sub, reference_backend, opt.reference_tolerance, opt.cancel, ref);
+      const std::vector<double> truth =
+          reference_totals(sub, reference_backend, opt.reference_tolerance, opt.cancel, ref);
       report.references.push_back(ref);
       for (const ReportRunSpec& run : opt.runs) {
         ReportCurve curve;
