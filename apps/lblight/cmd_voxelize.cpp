@@ -7,12 +7,12 @@
 #include <filesystem>
 #include <iostream>
 #include <sstream>
-#include <unistd.h>
 
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
 #include "lblight/core/version.h"
+#include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/scene/mesh_source.h"
 
@@ -89,16 +89,10 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   const std::vector<DenseGridOut> grids = {{"density", &g.density, nullptr, true, dmeta},
                                            {"brown", &brown, nullptr, false, bmeta}};
   // Written under a temporary name and renamed: the output appears complete or not at all.
-  const fs::path tmp = folder / ("." + out.filename().string() + ".tmp-" + std::to_string(::getpid()));
-  try {
+  write_file_atomically(out, [&](const fs::path& tmp) {
     write_vdb(tmp, frame, grids, meta);
     throw_if_interrupted();
-    fs::rename(tmp, out);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
-  }
+  });
 
   nlohmann::json summary = meta;
   summary["output"] = out.string();

@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <random>
 
 #include "lblight/core/error.h"
 #include "lblight/core/version.h"
+#include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
 #include "readers/lbh/lbh_reader.h"
 
@@ -97,23 +97,7 @@ void decompress_lbh(const std::filesystem::path& lbh_path, const std::filesystem
   }
   const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion + " decompress"},
                                     {"lblight_source", lbh_path.filename().string()}};
-  std::mt19937_64 rng(std::random_device{}());
-  const std::filesystem::path tmp =
-      vdb.parent_path() / ("." + vdb.filename().string() + ".tmp-" + std::to_string(rng() % 1000000007ull));
-  try {
-    write_vdb(tmp, frame, grids, file_meta);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, vdb, ec);
-  if (ec) {
-    std::error_code ignore;
-    std::filesystem::remove(tmp, ignore);
-    throw_io("cannot move the decompressed file into place: " + ec.message(), {vdb.string(), {}, {}});
-  }
+  write_file_atomically(vdb, [&](const std::filesystem::path& tmp) { write_vdb(tmp, frame, grids, file_meta); });
 }
 
 }  // namespace lblight

@@ -22,9 +22,6 @@ std::string unique_suffix() {
   static std::atomic<int> counter{0};
   return std::to_string(::getpid()) + "-" + std::to_string(counter++);
 }
-}  // namespace
-
-namespace {
 
 struct KindRules {
   const char* marker;                      // the file that says what wrote the folder
@@ -120,26 +117,34 @@ void StagedDirectory::commit() {
   if (!old.empty()) fs::remove_all(old, ec);
 }
 
-void write_file_atomically(const fs::path& file, const std::string& text) {
+void write_file_atomically(const fs::path& file, const std::function<void(const fs::path& temporary)>& write) {
   const fs::path tmp = file.parent_path() / ("." + file.filename().string() + ".tmp-" + unique_suffix());
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw_io(std::string("cannot create file: ") + std::strerror(errno), {file.string(), {}, {}});
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw_io("cannot write file (disk full?)", {file.string(), {}, {}});
-    }
+  const auto remove_tmp = [&] {
+    std::error_code ignore;
+    fs::remove(tmp, ignore);
+  };
+  try {
+    write(tmp);
+  } catch (...) {
+    remove_tmp();
+    throw;
   }
   std::error_code ec;
   fs::rename(tmp, file, ec);
   if (ec) {
-    std::error_code ignore;
-    fs::remove(tmp, ignore);
+    remove_tmp();
     throw_io("cannot rename into place: " + ec.message(), {file.string(), {}, {}});
   }
+}
+
+void write_file_atomically(const fs::path& file, const std::string& text) {
+  write_file_atomically(file, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw_io(std::string("cannot create file: ") + std::strerror(errno), {file.string(), {}, {}});
+    out << text;
+    out.flush();
+    if (!out) throw_io("cannot write file (disk full?)", {file.string(), {}, {}});
+  });
 }
 
 }  // namespace lblight

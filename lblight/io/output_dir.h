@@ -4,6 +4,8 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
+#include <string>
 
 namespace lblight {
 
@@ -35,7 +37,12 @@ class StagedDirectory {
   bool committed_ = false;
 };
 
-// Writes `text` to `file` through a temporary name in the same folder and a rename.
+// Has `write` fill a temporary file beside `file`, then renames it into place: `file` appears
+// complete or not at all. The temporary is removed when `write` throws (its error passes on) or
+// the rename fails.
+void write_file_atomically(const std::filesystem::path& file,
+                           const std::function<void(const std::filesystem::path& temporary)>& write);
+// The same for a file whose content is `text`.
 void write_file_atomically(const std::filesystem::path& file, const std::string& text);
 
 }  // namespace lblight
