@@ -86,6 +86,11 @@ TEST_CASE("bake writes a manifest, a vdb and a summary that inspect reads back",
   const CliResult i = run_cli("inspect out", tmp.path());
   CHECK(i.exit_code == 0);
   CHECK(i.out.find("B01") != std::string::npos);
+  // the manifest itself names the same output (it is not read as a scene)
+  const CliResult im = run_cli("inspect out/manifest.json --json", tmp.path());
+  INFO(im.err);
+  CHECK(im.exit_code == 0);
+  CHECK(nlohmann::json::parse(im.out)["kind"] == "output");
   const CliResult iv = run_cli("inspect out/cloud.vdb --json", tmp.path());
   CHECK(iv.exit_code == 0);
   CHECK(nlohmann::json::parse(iv.out)["grids"].size() == 4);

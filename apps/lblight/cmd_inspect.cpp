@@ -210,13 +210,16 @@ int run_inspect(const InspectArgs& args) {
   if (!fs::exists(p)) throw_invalid("no such file or directory", where);
   nlohmann::json j;
   std::string text;
-  if (fs::is_directory(p)) {
-    if (!fs::exists(p / "manifest.json"))
+  // a bake's manifest.json names its output directory: summarise that, not a scene
+  const bool manifest = !fs::is_directory(p) && p.filename() == "manifest.json";
+  if (fs::is_directory(p) || manifest) {
+    const fs::path dir = !manifest ? p : p.has_parent_path() ? p.parent_path() : fs::path(".");
+    if (!fs::exists(dir / "manifest.json"))
       throw_invalid("directory holds no manifest.json; allowed: a scene .json, a .vdb file or an lblight output "
                     "directory",
                     where);
-    j = output_summary(p);
-    text = output_text(j, p);
+    j = output_summary(dir);
+    text = output_text(j, dir);
   } else if (p.extension() == ".json") {
     j = scene_summary(load_scene(p));
     text = scene_text(j);
@@ -243,7 +246,7 @@ Command add_inspect_command(CLI::App& app, const GlobalOptions&) {
   CLI::App* cmd = app.add_subcommand(
       "inspect", "Summarise a scene file (.json), an OpenVDB file (.vdb: grids, types, boxes, metadata), a "
                  "Haar-compressed stream (.lbh: validated; sizes, ratio, fast-path blocks, errors) or a bake output "
-                 "directory (manifest: solutions, iterations, times, error estimates).");
+                 "directory or its manifest.json (solutions, iterations, times, error estimates).");
   cmd->add_option("path", args->path, "Scene, .vdb or .lbh file, or output directory")->required();
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   return {cmd, [args] { return run_inspect(*args); }};
