@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <atomic>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -14,6 +15,7 @@
 #include "lblight/mesh/tri_box.h"
 #include "lblight/mesh/voxelize.h"
 #include "lblight/scene/load_model.h"
+#include "lblight/scene/mesh_source.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
@@ -505,6 +507,30 @@ TEST_CASE("Voxeliser: same result on any thread count, padding keeps the transfo
   CHECK(differ == 0);
   CHECK(a.stats.brown_nodes > 0);
   CHECK(a.grid.dims.longest() == 24);
+}
+
+TEST_CASE("Voxeliser and model loading stop with Cancelled once the flag is set", "[mesh]") {
+  const TriangleMesh m = read_mesh(fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj");
+  const Classification c = classify_parts(m, {}, {});
+  std::atomic<bool> cancel{false};
+  VoxelizeOptions o;
+  o.resolution = 16;
+  o.cancel = &cancel;
+  CHECK(voxelize(m, c.part_class, o).stats.occupied_nodes > 0);  // an unset flag changes nothing
+  cancel = true;
+  const auto category = [](auto&& f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return e.category();
+    }
+    return ErrorCategory::Internal;
+  };
+  CHECK(category([&] { voxelize(m, c.part_class, o); }) == ErrorCategory::Cancelled);
+  MeshSource src;
+  src.path = fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj";
+  src.resolution = 16;
+  CHECK(category([&] { voxelize_mesh_source(src, 0, {}, 0, &cancel); }) == ErrorCategory::Cancelled);
 }
 
 TEST_CASE("lblight voxelize writes density and brown grids that reopen with OpenVDB", "[mesh][cli]") {

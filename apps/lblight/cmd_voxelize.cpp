@@ -52,8 +52,7 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   if (!fs::is_directory(folder)) throw_invalid("output folder " + folder.string() + " does not exist");
   check_output_file(a.mesh, out, ".vdb");
 
-  const MeshVoxels mv = voxelize_mesh_source(src, a.padding, {}, a.threads);
-  throw_if_interrupted();  // the voxeliser does not poll; a signal during it still writes nothing
+  const MeshVoxels mv = voxelize_mesh_source(src, a.padding, {}, a.threads, &g_interrupted);
   const ModelGrid& g = mv.voxels.grid;
   const VoxelizeStats& st = mv.voxels.stats;
 

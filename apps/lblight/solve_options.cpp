@@ -48,6 +48,7 @@ PlanOverrides SolveOptions::overrides() const {
   if (tolerance > 0) ov.tolerance = tolerance;
   if (!precision.empty()) ov.precision = parse_precision(precision);
   if (!method.empty()) ov.method = method == "bicgstab" ? SolverMethod::BiCGStab : SolverMethod::Plain;
+  ov.cancel = &g_interrupted;
   return ov;
 }
 

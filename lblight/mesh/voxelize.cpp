@@ -365,6 +365,7 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
         cnt_wood(cnt_occ.size());
 #pragma omp for schedule(dynamic, 1)
     for (long long col = 0; col < columns; ++col) {
+      if (opt.cancel && opt.cancel->load(std::memory_order_relaxed)) continue;  // no throw inside OpenMP
       const int tx = static_cast<int>(col % T[0]), ty = static_cast<int>(col / T[0]);
       const int x0 = tx * F, y0 = ty * F, fx = std::min(F, N[0] - x0), fy = std::min(F, N[1] - y0);
       // Solid fill: intervals of inside cells per fine column, from sorted ray crossings.
@@ -465,6 +466,7 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
       }
     }
   }
+  throw_if_cancelled(opt.cancel);
   st.fine_occupied = occ_total;
   st.fine_leaf = leaf_total;
   st.fine_wood = wood_total;

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -32,6 +33,7 @@ struct VoxelizeOptions {
   int padding = 0;       // empty nodes added on every side (index_min becomes -padding)
   FillMode fill = FillMode::None;
   int threads = 0;       // 0: all cores (OpenMP default)
+  const std::atomic<bool>* cancel = nullptr;  // polled per tile column: Error(Cancelled) once set
 };
 
 struct VoxelizeStats {
@@ -54,7 +56,7 @@ struct VoxelizeResult {
 
 // `part_class` gives leaf or wood per mesh part (classify_parts). Throws Error(InvalidInput)
 // with `where` for options out of range, non-finite vertices, a box of zero size, or a mesh
-// with no triangle of non-zero area inside the box.
+// with no triangle of non-zero area inside the box; Error(Cancelled) when options.cancel is set.
 VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClass>& part_class,
                         const VoxelizeOptions& options, const Location& where = {});
 

@@ -8,17 +8,19 @@
 
 namespace lblight {
 
-ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene) {
+ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const std::atomic<bool>* cancel) {
   ModelGrid g;
   switch (model.density.type) {
     case SourceType::Procedural: g = make_procedural(model.density.procedural); break;
     case SourceType::Vdb: g = read_vdb_density(model.density.vdb, {scene.file.string(), model.density.json_path, {}}); break;
-    case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}); break;
+    case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}, cancel);
+      break;
   }
   // NaN stays NaN through the scale and is reported below with its voxel.
   const float scale = static_cast<float>(model.density.density_scale);
   if (scale != 1.0f)
     for (float& d : g.density) d *= scale;
+  throw_if_cancelled(cancel);  // a procedural or .vdb source does not poll
   check_density_values(model, g, scene);
   for (std::size_t i = 0; i < g.density.size(); ++i)
     if (g.density[i] == 0.0f) g.material[i] = kMaterialMedium;

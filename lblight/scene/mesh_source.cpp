@@ -16,7 +16,8 @@ FillMode parse_fill_mode(const std::string& text) {
   throw std::invalid_argument("unknown fill mode '" + text + "'; allowed: none, parity, winding");
 }
 
-MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Location& where, int threads) {
+MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Location& where, int threads,
+                                const std::atomic<bool>* cancel) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string name = source.path.string();
   MeshVoxels out;
@@ -47,6 +48,7 @@ MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Loc
   opt.bounds_max = source.bounds_max;
   opt.padding = padding;
   opt.threads = threads;
+  opt.cancel = cancel;
   opt.fill = parse_fill_mode(source.fill);
   out.voxels = voxelize(mesh, out.classes.part_class, opt, where);
   const VoxelizeStats& st = out.voxels.stats;
@@ -69,8 +71,8 @@ MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Loc
   return out;
 }
 
-ModelGrid load_mesh_density(const MeshSource& source, const Location& where) {
-  return std::move(voxelize_mesh_source(source, 0, where).voxels.grid);
+ModelGrid load_mesh_density(const MeshSource& source, const Location& where, const std::atomic<bool>* cancel) {
+  return std::move(voxelize_mesh_source(source, 0, where, 0, cancel).voxels.grid);
 }
 
 }  // namespace lblight

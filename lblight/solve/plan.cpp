@@ -135,7 +135,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
   for (const ModelSpec& spec : scene.models) {
     ModelPlan mp;
     mp.spec = &spec;
-    mp.grid = load_model_grid(spec, scene);
+    mp.grid = load_model_grid(spec, scene, ov.cancel);
     mp.stats = check_stability(spec, mp.grid, scene, plan.warnings);
     const Dims full = mp.grid.dims;
     mp.savings.full_lattice = {full.nx + 2 * spec.margin, full.ny + 2 * spec.margin, full.nz + 2 * spec.margin};

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@ struct PlanOverrides {
   std::optional<double> tolerance;            // --tolerance
   std::optional<Precision> precision;
   std::optional<SolverMethod> method;         // --method
+  const std::atomic<bool>* cancel = nullptr;  // loading and voxelising the models stop once set
 };
 
 struct SolutionPlan {
