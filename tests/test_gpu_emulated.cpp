@@ -51,6 +51,7 @@ struct HostTables {
   std::vector<std::array<float, 19>> boundaries;
   std::vector<std::array<CollisionOp<float>, 2>> ops;
   std::vector<unsigned> absorb;
+  std::vector<float> totals;  // c_boundary_total
   int channel(int s) const { return channels[static_cast<std::size_t>(s)]; }
   unsigned absorb_bits(int c) const { return absorb[static_cast<std::size_t>(c)]; }
   float boundary(int s, int m) const { return boundaries[static_cast<std::size_t>(s)][static_cast<std::size_t>(m)]; }
@@ -72,6 +73,7 @@ class EmulatedGpu {
     }
     for (const auto& s : batch) {
       tb_.channels.push_back(s.channel);
+      tb_.totals.push_back(static_cast<float>(boundary_total(s.boundary)));
       std::array<float, 19> b{};
       for (int m = 0; m < 19; ++m) b[m] = static_cast<float>(s.boundary[m]);
       tb_.boundaries.push_back(b);
@@ -88,8 +90,7 @@ class EmulatedGpu {
     a_.totals = totals_.data();
     set_level(0);
     for (int s = 0; s < a_.systems; ++s) {  // init_totals_kernel
-      float bt = 0;
-      for (int m = 0; m < 19; ++m) bt += tb_.boundary(s, m);
+      const float bt = tb_.totals[static_cast<std::size_t>(s)];
       for (int z = 0; z < d.nz; ++z)
         for (int y = 0; y < d.ny; ++y)
           for (int x = 0; x < d.nx; ++x)
@@ -170,7 +171,12 @@ class EmulatedGpu {
 }  // namespace
 
 TEST_CASE("GPU kernel code on an emulated grid matches the OpenMP backend", "[gpu-emulated]") {
-  const Dims d{21, 13, 11};
+  // 21 wide: 32 x 4 blocks (the several-row kernel); 257 wide: two 128-wide one-row blocks per
+  // row, the kernel 128^3, 256^3 and the plant (118 wide) run, with blockIdx.x > 0
+  const Dims d = GENERATE(Dims{21, 13, 11}, Dims{257, 6, 5});
+  INFO("lattice " << d.nx << "x" << d.ny << "x" << d.nz << ", blocks " << gpu::step_launch(d).bx << " x "
+                  << gpu::step_launch(d).by << ", " << gpu::step_launch(d).gx << " along x");
+  REQUIRE(gpu::step_launch(d).by == (d.nx == 257 ? 1 : 4));
   const LatticeGeometry g = random_lattice(d, 0.9f, 0.15, 21);
   const std::vector<ChannelMaterials> channels = {channel({0.109, 0.891, -0.12}, true), channel({0.091, 0.909, 0.09}, true),
                                                   channel({0.118, 0.882, -0.33}, false)};

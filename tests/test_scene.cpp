@@ -118,6 +118,33 @@ TEST_CASE("Static lighting: sun from angles or a vector", "[scene]") {
   CHECK(s.lighting.intensity == 2.0);
 }
 
+TEST_CASE("float16 plans: boundary values within float16's range, no bicgstab", "[scene][validate]") {
+  const auto scene = [](const std::string& intensity) {
+    return parse_scene(std::string(kMinimal).insert(1, R"("lighting": {"mode": "static",
+        "sun": {"direction": [0, 0, 1]}, "intensity": )" + intensity + R"(, "ambient": 0},)"), "s.json");
+  };
+  const auto message = [](const Scene& s, const PlanOverrides& ov) -> std::string {
+    try {
+      make_plan(s, ov);
+    } catch (const Error& e) {
+      CHECK(e.category() == ErrorCategory::InvalidInput);
+      return std::string(e.where().json_path) + ": " + e.what();
+    }
+    return "";
+  };
+  PlanOverrides f16;
+  f16.precision = Precision::Float16;
+  CHECK(message(scene("1e4"), f16).empty());
+  CHECK(message(scene("1e5"), {}).empty());  // float32 holds it
+  CHECK_THAT(message(scene("1e5"), f16), Catch::Contains("/lighting/intensity") && Catch::Contains("65504"));
+  PlanOverrides krylov = f16;
+  krylov.method = SolverMethod::BiCGStab;
+  krylov.mode = IterationMode::Auto;
+  CHECK_THAT(message(scene("1"), krylov), Catch::Contains("/solver/method") && Catch::Contains("float16"));
+  krylov.precision = Precision::Float32;
+  CHECK(message(scene("1"), krylov).empty());
+}
+
 TEST_CASE("Grid rules: density after scale and rho * sigma_t < 2", "[scene][validate]") {
   // density_scale pushes the procedural cloud's core above 1
   Scene s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",

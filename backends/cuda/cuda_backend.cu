@@ -41,6 +41,7 @@ __constant__ CollisionOp<float> c_ops[kMaxChannels][kMaxMaterialsGpu];
 __constant__ unsigned c_absorb[kMaxChannels];
 __constant__ int c_channel[kMaxBatch];
 __constant__ float c_boundary[kMaxBatch][19];
+__constant__ float c_boundary_total[kMaxBatch];  // boundary_total(), rounded once as the CPU does
 
 struct DeviceTables {
   __device__ int channel(int s) const { return c_channel[s]; }
@@ -119,12 +120,7 @@ __global__ void init_totals_kernel(float* totals, Dims d, int systems) {
   const int x = static_cast<int>(n % d.nx), y = static_cast<int>((n / d.nx) % d.ny),
             z = static_cast<int>(n / (static_cast<long long>(d.nx) * d.ny));
   const bool boundary = d.is_boundary(x, y, z);
-  for (int s = 0; s < systems; ++s) {
-    float t = 0.0f;
-    if (boundary)
-      for (int m = 0; m < 19; ++m) t += c_boundary[s][m];
-    totals[s * count + n] = t;
-  }
+  for (int s = 0; s < systems; ++s) totals[s * count + n] = boundary ? c_boundary_total[s] : 0.0f;
 }
 
 // Block-level partial sums per system, written to partial[(block * systems + s) * slots].
@@ -160,7 +156,8 @@ __global__ void measure_kernel(BatchArgs<T> a, double* partial) {
   }
 }
 
-// One block per system adds the partials in block order: the same sums on every run.
+// One block per system: each thread adds every kReduceBlock-th partial, then a tree over the block.
+// A fixed order, so the same sums on every run.
 __global__ void finish_reduce_kernel(const double* partial, int blocks, int systems, double* out) {
   __shared__ double shared[kReduceSlots][kReduceBlock];
   const int s = static_cast<int>(blockIdx.x);
@@ -227,9 +224,9 @@ class DeviceBuffer {
   std::size_t count_ = 0;
 };
 
-// "" when this build has code the current device (`device`) can run, else why not: the binary
-// holds sm_80/sm_90 machine code and compute_90 PTX, so older GPUs (sm_75, ...) have nothing
-// to run, and every launch there would fail with "no kernel image".
+// "" when this build has code the current device (`device`) can run and the device answers, else
+// why not: the binary holds sm_80/sm_90 machine code and compute_90 PTX, so older GPUs (sm_75,
+// ...) have nothing to run, and every launch there would fail with "no kernel image".
 std::string kernel_image_problem(int device) {
   gpuFuncAttributes attr{};
   const gpuError_t err = gpuFuncGetAttributes(&attr, reinterpret_cast<const void*>(&finish_dot_kernel));
@@ -241,7 +238,9 @@ std::string kernel_image_problem(int device) {
     name += " (" + std::string(props.name) + ", compute capability " + std::to_string(props.major) + "." +
             std::to_string(props.minor) + ")";
   (void)gpuGetLastError();
-  return name + " cannot run the GPU code of this build (sm_80, sm_90, compute_90 PTX): " + gpuGetErrorString(err);
+  if (err == gpuErrorNoKernelImage || err == gpuErrorInvalidDeviceFunction)
+    return name + " cannot run the GPU code of this build (sm_80, sm_90, compute_90 PTX): " + gpuGetErrorString(err);
+  return name + " could not be used: " + gpuGetErrorString(err);  // out of memory, ECC, a lost device, ...
 }
 
 // Why the runtime found no usable GPU, with the driver's and this build's runtime versions (a
@@ -540,13 +539,15 @@ class Solver final : public LatticeSolver {
     GPU_CHECK(gpuMemcpyToSymbol(c_ops, ops_, sizeof(ops_)));
     GPU_CHECK(gpuMemcpyToSymbol(c_absorb, absorb_, sizeof(absorb_)));
     int channel[kMaxBatch] = {};
-    float boundary[kMaxBatch][19] = {};
+    float boundary[kMaxBatch][19] = {}, total[kMaxBatch] = {};
     for (std::size_t s = 0; s < batch_.size(); ++s) {
       channel[s] = batch_[s].channel;
       for (int m = 0; m < 19; ++m) boundary[s][m] = static_cast<float>(batch_[s].boundary[m]);
+      total[s] = static_cast<float>(boundary_total(batch_[s].boundary));
     }
     GPU_CHECK(gpuMemcpyToSymbol(c_channel, channel, sizeof(channel)));
     GPU_CHECK(gpuMemcpyToSymbol(c_boundary, boundary, sizeof(boundary)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_boundary_total, total, sizeof(total)));
     bound_tables_owner(device_) = this;
     bound_batch_ = batch_generation_;
   }

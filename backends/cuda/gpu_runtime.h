@@ -42,6 +42,8 @@
 #define gpuEventSynchronize hipEventSynchronize
 #define gpuEventElapsedTime hipEventElapsedTime
 #define gpuErrorMemoryAllocation hipErrorOutOfMemory
+#define gpuErrorNoKernelImage hipErrorNoBinaryForGpu
+#define gpuErrorInvalidDeviceFunction hipErrorInvalidDeviceFunction
 #define gpuFuncAttributes hipFuncAttributes
 #define gpuFuncGetAttributes hipFuncGetAttributes
 using gpu_half = __half;
@@ -81,6 +83,8 @@ using gpu_half = __half;
 #define gpuEventSynchronize cudaEventSynchronize
 #define gpuEventElapsedTime cudaEventElapsedTime
 #define gpuErrorMemoryAllocation cudaErrorMemoryAllocation
+#define gpuErrorNoKernelImage cudaErrorNoKernelImageForDevice
+#define gpuErrorInvalidDeviceFunction cudaErrorInvalidDeviceFunction
 #define gpuFuncAttributes cudaFuncAttributes
 #define gpuFuncGetAttributes cudaFuncGetAttributes
 using gpu_half = __half;

@@ -32,6 +32,7 @@
 #define LBL_X86 0
 #endif
 
+#include "lblight/backend/boundary.h"
 #include "lblight/core/aligned_buffer.h"
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
@@ -192,10 +193,9 @@ class CpuLatticeSolver final : public LatticeSolver {
       }
       fill(slot.state.data(), 2 * kQ * stride_, Real(0));
       for (int level = 0; level < 2; ++level) set_boundary(slot, level);
-      double boundary_total = 0;
-      for (double v : slot.spec.boundary) boundary_total += v;
-      init_totals(slot.totals.data(), static_cast<Real>(boundary_total));
-      init_totals(slot.scratch.data(), static_cast<Real>(boundary_total));
+      const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
+      init_totals(slot.totals.data(), total);
+      init_totals(slot.scratch.data(), total);
     }
     now_ = 0;
     cur_ = 0;

@@ -4,6 +4,8 @@
 // entry. Backends therefore store those "inflow" entries once and only update interior nodes.
 #pragma once
 
+#include <array>
+
 #include "lblight/core/hostdev.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/lattice/lattice.h"
@@ -20,6 +22,14 @@ LBL_HOSTDEV inline long long neighbour_offset(const Dims& d, int m) {
   return static_cast<long long>(d3q19::cx(m)) +
          static_cast<long long>(d3q19::cy(m)) * d.nx +
          static_cast<long long>(d3q19::cz(m)) * static_cast<long long>(d.nx) * d.ny;
+}
+
+// What a boundary node's stored total (sum_m f_m) is: its fixed values added in double and
+// rounded once by the caller, so every backend and storage precision stores the same number.
+inline double boundary_total(const std::array<double, 19>& boundary) {
+  double t = 0.0;
+  for (double v : boundary) t += v;
+  return t;
 }
 
 }  // namespace lblight

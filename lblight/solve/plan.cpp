@@ -206,6 +206,19 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
                         std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +
                         "; set --iterations auto or solver.iterations \"auto\"",
                     {scene.file.string(), "/solver/method", {}});
+    if (st.method == SolverMethod::BiCGStab && plan.precision == Precision::Float16)
+      throw_invalid("solver method bicgstab runs on float32 storage, not float16; use method plain with float16, or "
+                    "precision float32",
+                    {scene.file.string(), "/solver/method", {}});
+    if (plan.precision == Precision::Float16)
+      for (const SolutionPlan& s : mp.solutions)
+        for (double v : s.boundary)
+          if (v > kFloat16MaxBoundary)
+            throw_invalid("float16 storage holds values up to 65504, and a boundary value of " + message_number(v) +
+                              " (intensity plus ambient) is above the " + message_number(kFloat16MaxBoundary) +
+                              " that leaves room for; light is linear in them: scale intensity and ambient down "
+                              "and the result up, or use float32",
+                          {scene.file.string(), "/lighting/intensity", {}});
     st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
     st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
                                                         : std::clamp((longest + 2) / 4, 4, 16);

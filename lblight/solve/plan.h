@@ -16,6 +16,10 @@
 
 namespace lblight {
 
+// The largest boundary value float16 storage takes (its largest finite value is 65504; light in
+// the lattice stays near the boundary's, and the margin keeps sums and overshoot finite).
+inline constexpr double kFloat16MaxBoundary = 1e4;
+
 struct PlanOverrides {
   std::optional<std::vector<int>> solutions;  // --solutions
   std::optional<IterationMode> mode;          // --iterations
