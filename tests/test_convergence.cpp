@@ -39,6 +39,26 @@ TEST_CASE("No estimate while the ratio is still climbing or above 1", "[converge
   ConvergenceMonitor grow(Precision::Float64);
   for (int k = 1; k <= 6; ++k) grow.record(10 * k, 10, 0, change(1e-3 * k));
   CHECK(std::isinf(grow.error_estimate()));
+  // ratios 0.5, 0.5, 0.52, 0.54, 0.59: the last two differ by 0.05, more than the 0.02 (and
+  // 0.1 (1 - r) = 0.041) a settled ratio may move: the slow mode has not taken over yet
+  ConvergenceMonitor moving(Precision::Float64);
+  double c = 1e-2;
+  step = 0;
+  moving.record(step += 10, 10, 0, change(c));
+  for (double r : {0.5, 0.5, 0.52, 0.54, 0.59}) moving.record(step += 10, 10, 0, change(c *= r));
+  CHECK(std::isinf(moving.error_estimate()));
+}
+
+TEST_CASE("While the ratio still creeps up, the tail uses the last (largest) ratio", "[convergence]") {
+  // settled enough to estimate (steps of 0.005 per check), still rising: the log-linear fit over
+  // the last checks lags behind at ~0.8, and the tail must take the last ratio 0.81 or it comes
+  // out below the true remaining error
+  ConvergenceMonitor m(Precision::Float64);
+  double c = 1e-2;
+  int step = 0;
+  m.record(step += 10, 10, 0, change(c));
+  for (double r : {0.78, 0.785, 0.79, 0.795, 0.80, 0.805, 0.81}) m.record(step += 10, 10, 0, change(c *= r));
+  CHECK(m.error_estimate() == Approx(2.0 * c * 0.81 / (1 - 0.81)).epsilon(1e-6));
 }
 
 TEST_CASE("The estimate never drops below the f_0 reservoir deficit or the rounding floor", "[convergence]") {

@@ -181,8 +181,27 @@ TEST_CASE("B00 summed from the 18 directional solutions equals the solved B00", 
   // The derived solution's estimate bounds its parts: auto mode, tolerance 1e-3.
   const Scene autos = parse_scene(scene_text(R"({"mode": "base"})", R"({"tolerance": 1e-3})"), "s.json");
   const BakeResult c = bake(autos);
-  CHECK(c.solutions.at(0).error_estimate > 0);
-  CHECK(c.solutions.at(0).error_estimate < 1e-3);
+  const SolutionResult& derived = c.solutions.at(0);
+  CHECK(derived.error_estimate > 0);
+  CHECK(derived.error_estimate < 1e-3);
+  // ... in both norms, against B00 solved to 1e-10 in float64
+  const Scene tight = parse_scene(scene_text(R"({"solutions": "0"})", R"({"tolerance": 1e-10, "precision": "float64"})"),
+                                  "s.json");
+  const BakeResult reference = bake(tight, Precision::Float64);
+  const SolutionResult& ref = reference.solutions.at(0);
+  double diff_sq = 0, ref_sq = 0, diff_max = 0, ref_max = 0;
+  for (int ch = 0; ch < 3; ++ch)
+    for (std::size_t i = 0; i < ref.totals[ch].size(); ++i) {
+      const double want = ref.totals[ch][i], d = std::fabs(derived.totals[ch][i] - want);
+      diff_sq += d * d;
+      ref_sq += want * want;
+      diff_max = std::max(diff_max, d);
+      ref_max = std::max(ref_max, std::fabs(want));
+    }
+  INFO("true error: L2 " << std::sqrt(diff_sq / ref_sq) << ", max " << diff_max / ref_max);
+  CHECK(derived.error_estimate >= std::sqrt(diff_sq / ref_sq));
+  CHECK(derived.error_estimate_max > 0);
+  CHECK(derived.error_estimate_max >= diff_max / ref_max);
 }
 
 TEST_CASE("Cropping to the occupied nodes keeps the steady state of every occupied node", "[skips][bake]") {
@@ -236,4 +255,28 @@ TEST_CASE("Channels with equal materials are solved once and equal a separate so
     CHECK(tb[0] == tb[1]);
     CHECK(tb[2] != tb[0]);
   }
+}
+
+TEST_CASE("A solution's error estimate is that of its slowest channel", "[bake][convergence]") {
+  // red scatters almost without loss (slow to converge), green and blue absorb (fast): the
+  // solution's estimate must be red's, not the last channel's, and bound red's true error
+  const auto scene = [](const std::string& material, const std::string& solver) {
+    return parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
+        "resolution": 12}, "material": )" + material + R"(}], "lighting": {"solutions": "5"}, "solver": )" + solver + "}",
+                       "s.json");
+  };
+  const std::string colour = R"({"sigma_a": [0.001, 0.3, 0.3], "sigma_s": [0.799, 0.5, 0.5], "g": 0, "absorb": true})";
+  const std::string red = R"({"sigma_a": 0.001, "sigma_s": 0.799, "g": 0, "absorb": true})";
+  const Scene coloured = scene(colour, R"({"tolerance": 1e-3})"), grey = scene(red, R"({"tolerance": 1e-3})");
+  const Scene exact = scene(colour, R"({"tolerance": 1e-11, "precision": "float64"})");
+  const BakeResult a = bake(coloured), g = bake(grey), ref = bake(exact, Precision::Float64);
+  const SolutionResult& got = a.solutions.at(5);
+  INFO("estimates: coloured " << got.error_estimate << " (" << got.iterations << " steps, converged " << got.converged
+                                << "), red alone " << g.solutions.at(5).error_estimate << " (" << g.solutions.at(5).iterations
+                                << " steps)");
+  CHECK(got.error_estimate == Approx(g.solutions.at(5).error_estimate).epsilon(1e-6));
+  const RelativeGap red_error = relative_gap(got.totals[0], ref.solutions.at(5).totals[0]);
+  INFO("red's true error " << red_error.l2);
+  CHECK(got.error_estimate >= red_error.l2);
+  CHECK(got.error_estimate < 1e-3);
 }
