@@ -187,6 +187,13 @@ TEST_CASE("Every validation rule of spec sec. 6 exits 2 and writes nothing", "[c
   expect_rejected(model_with(R"({"type": "procedural", "resolution": 8, "density_scale": 2.5})", R"("cloud")"),
                   "after density_scale");
   expect_rejected(model_with(kProc, R"({"sigma_a": 0.2, "sigma_s": 1.9, "g": 0.5})"), "rho * sigma_t < 2");
+  // backscattering just past the limit rho (sigma_a + 2 sigma_s) < 2 of g = -1: spectral radius
+  // 1.004 at density 1 (rho * sigma_t = 1.002 passes the rule above)
+  const std::string box = R"({"type": "procedural", "shape": "box", "resolution": 6})";
+  expect_rejected(model_with(box, R"({"sigma_a": 0, "sigma_s": 1.002, "g": -1})"), "amplifies a pattern");
+  TempDir tmp;
+  write_text(tmp / "edge.json", model_with(box, R"({"sigma_a": 0, "sigma_s": 0.999, "g": -1})"));  // radius 1
+  CHECK(run_cli("validate edge.json", tmp.path()).exit_code == 0);
   expect_rejected(R"({"version": 1, "models": [{"name": "m", "density": {"type": "procedural"}, "material": "cloud",
       "extra": true}]})", "unknown field 'extra'");
   expect_rejected("{ not json", "not valid JSON");

@@ -244,7 +244,7 @@ TEST_CASE("No sec. 6 warning (1 + rho Omega_mm >= 0): totals >= -1e-6 max at eve
 // g = -1 (rho sigma_t = 1.9) grows by 2.6 per step. Validation now also rejects a spectral radius
 // of 1 + rho Omega above 1. Expect: what it rejects blows up (> 1e6 within 200 steps on a uniform
 // lattice) and what it accepts stays bounded (< 100 with boundary values summing to 19); the CLI
-// check is in the sec. 6 test case below.
+// check is in tests/test_cli.cpp ("Every validation rule of spec sec. 6").
 TEST_CASE("Backscattering: spectral radius > 1 diverges and is rejected, radius 1 stays bounded",
           "[extreme][stiff][validate]") {
   const LatticeGeometry g = uniform_lattice({12, 12, 12}, 1.0f);

@@ -1,10 +1,15 @@
 // Scene file v1: what parses, and how bad input is named.
 #include <catch2/catch.hpp>
 
+#include <nlohmann/json.hpp>
+
 #include "lblight/core/error.h"
+#include "lblight/io/vdb_io.h"
+#include "lblight/lattice/omega.h"
 #include "lblight/scene/load_model.h"
 #include "lblight/scene/scene.h"
 #include "lblight/solve/plan.h"
+#include "tests/test_support.h"
 
 using namespace lblight;
 
@@ -181,4 +186,39 @@ TEST_CASE("Procedural sources are deterministic and in range", "[scene]") {
   CHECK(a.wood_nodes() > 0);
   CHECK(a.occupied_nodes() > a.wood_nodes());
   for (float d : a.density) REQUIRE((d >= 0.0f && d <= 1.0f));
+}
+
+TEST_CASE("Auto iterations never stop before light can cross the lattice", "[scene]") {
+  const Scene s = parse_scene(kMinimal, "s.json");
+  const BakePlan p = make_plan(s);
+  CHECK(p.models[0].steps.mode == IterationMode::Auto);
+  CHECK(p.models[0].steps.min_steps == p.models[0].lattice.dims.longest());
+}
+
+TEST_CASE("Sec. 6 warning where 1 + rho * Omega_mm < 0, and none where it is not", "[scene][validate]") {
+  const auto warned = [](const std::string& material) {
+    const Scene s = parse_scene(R"({"version": 1, "models": [{"name": "b", "density": {"type": "procedural",
+        "shape": "box", "resolution": 6}, "material": )" + material + "}]}",
+                                "s.json");
+    for (const std::string& w : make_plan(s).warnings)
+      if (w.find("1 + rho * Omega_mm") != std::string::npos) return true;
+    return false;
+  };
+  // g = 0, sigma_a = 0, density 1 (the box): smallest 1 + rho Omega_mm -0.15, and 0 (not below)
+  CHECK(min_diagonal_gain(build_omega({0.0, 1.2, 0.0}), 1.0) == Approx(-0.15));
+  CHECK(min_diagonal_gain(build_omega({0.0, 0.9, 0.0}), 1.0) >= 0.0);
+  CHECK(warned(R"({"sigma_a": 0, "sigma_s": 1.2, "g": 0})"));
+  CHECK_FALSE(warned(R"({"sigma_a": 0, "sigma_s": 0.9, "g": 0})"));
+}
+
+TEST_CASE("The density range is checked after density_scale, not before", "[scene][validate]") {
+  lblight::test::TempDir tmp;
+  std::vector<float> density(4 * 4 * 4, 1.8f);
+  DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}};
+  write_vdb(tmp / "d.vdb", frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
+  const Scene s = parse_scene(R"({"version": 1, "models": [{"name": "v", "density": {"type": "vdb", "path": ")" +
+                                  (tmp / "d.vdb").string() + R"(", "density_scale": 0.5}, "material": "cloud"}]})",
+                              "s.json");
+  const ModelGrid g = load_model_grid(s.models[0], s);
+  for (float d : g.density) CHECK(d == Approx(0.9f));
 }

@@ -63,10 +63,10 @@ OmegaMatrixF to_float(const OmegaMatrix& omega) {
   return out;
 }
 
-double diffusion_coefficient(const OpticalParams& p, double rho) {
+double diffusion_coefficient(const OpticalParams& p, double rho, bool absorbs) {
   const double st = rho * p.sigma_t();
   if (st <= 0.0) return std::numeric_limits<double>::infinity();
-  return ((2.0 / st) - 1.0) / (4.0 * (1.0 + rho * p.sigma_a));
+  return ((2.0 / st) - 1.0) / (4.0 * (absorbs ? 1.0 : 1.0 + p.sigma_a));
 }
 
 double min_diagonal_gain(const OmegaMatrix& omega, double rho) {

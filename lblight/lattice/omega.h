@@ -30,8 +30,12 @@ OmegaMatrix build_omega(const OpticalParams& params);
 OmegaMatrixF to_float(const OmegaMatrix& omega);
 
 // LB diffusion coefficient of 000 eq. (4) with lambda = tau = 1 for a node of density rho:
-// ((2 / (rho sigma_t)) - 1) / (4 (1 + rho sigma_a)). Infinite for rho sigma_t = 0.
-double diffusion_coefficient(const OpticalParams& params, double rho = 1.0);
+// ((2 / (rho sigma_t)) - 1) / (4 (1 + sigma_a)). The density scales f_0's release (Omega_00 = -1)
+// as much as what feeds it (sigma_a), so f_0 holds sigma_a times the moving mass at any rho and
+// light rests there a fraction sigma_a / (1 + sigma_a) of the time: 1 + sigma_a, not
+// 1 + rho sigma_a (measured, tests/test_diffusion.cpp). A material that absorbs (dumps f_0)
+// has no resting light: ((2 / (rho sigma_t)) - 1) / 4. Infinite for rho sigma_t = 0.
+double diffusion_coefficient(const OpticalParams& params, double rho = 1.0, bool absorbs = false);
 
 // Smallest diagonal entry 1 + rho * Omega_mm over m; negative values mean transients can go
 // negative (spec sec. 6 asks for a warning, not a rejection).

@@ -75,15 +75,38 @@ SunWeights decompose_direction(const Vec3d& d) {
       best.weight = {std::max(0.0, alpha / sum), std::max(0.0, beta / sum), std::max(0.0, gamma / sum)};
     }
   }
+  // A weight left by rounding (a sun along a lattice direction or face edge: 1e-17) is 0, so
+  // that it asks for no base solution; kNegligibleSunWeight is far below float precision.
+  for (double& w : best.weight)
+    if (w < kNegligibleSunWeight) w = 0.0;
   const double s = best.weight[0] + best.weight[1] + best.weight[2];
   for (double& w : best.weight) w /= s;
   return best;
 }
 
+namespace {
+// sin and cos of an angle in degrees, exact at multiples of 90: in radians cos(90 deg) is 6e-17,
+// which gives a zenith sun a 1e-16 weight on a second direction (one more base solution to bake).
+void sincos_deg(double deg, double& s, double& c) {
+  double r = std::fmod(deg, 360.0);
+  if (r < 0) r += 360.0;
+  if (r == 0.0 || r == 90.0 || r == 180.0 || r == 270.0) {
+    const int q = static_cast<int>(r) / 90;
+    s = q == 1 ? 1.0 : q == 3 ? -1.0 : 0.0;
+    c = q == 0 ? 1.0 : q == 2 ? -1.0 : 0.0;
+    return;
+  }
+  const double rad = deg * (3.14159265358979323846 / 180.0);
+  s = std::sin(rad);
+  c = std::cos(rad);
+}
+}  // namespace
+
 Vec3d toward_sun_from_angles(double elevation_deg, double azimuth_deg) {
-  const double pi = 3.14159265358979323846;
-  const double el = elevation_deg * pi / 180.0, az = azimuth_deg * pi / 180.0;
-  return {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+  double se, ce, sa, ca;
+  sincos_deg(elevation_deg, se, ce);
+  sincos_deg(azimuth_deg, sa, ca);
+  return {ce * ca, ce * sa, se};
 }
 
 std::array<double, 19> static_boundary(const SunWeights& sun, double intensity, double ambient) {

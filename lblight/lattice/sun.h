@@ -12,6 +12,9 @@ struct Vec3d {
   double x = 0, y = 0, z = 0;
 };
 
+// Weights below this are rounding residue and set to 0 (the .lbh reader does the same).
+inline constexpr double kNegligibleSunWeight = 1e-9;
+
 struct SunWeights {
   std::array<int, 3> direction{};  // lattice directions a, b, c (1..18)
   std::array<double, 3> weight{};  // barycentric weights, >= 0, summing to 1

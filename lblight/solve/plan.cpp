@@ -103,9 +103,10 @@ double slowest_decay(const ModelPlan& mp) {
   double slowest = 1e300;
   for (int c = 0; c < kChannels; ++c) {
     const OpticalParams& p = mp.spec->material.channel[c];
-    const double sigma_tr = p.sigma_a + p.sigma_s * (1.0 - mean_cosine(p.g));
-    const double st = std::max(1e-6, rho * sigma_tr);
-    const double diff = std::max(1e-6, (2.0 / st - 1.0) / (4.0 * (1.0 + rho * p.sigma_a)));
+    // eq. (4) with the transport (reduced) scattering of an anisotropic phase function
+    const OpticalParams transport{p.sigma_a, p.sigma_s * (1.0 - mean_cosine(p.g)), 0.0};
+    const double diff =
+        std::max(1e-6, diffusion_coefficient(transport, std::max(rho, 1e-6), mp.spec->material.absorbs));
     const double pi2 = 9.8696044010893586;
     const double decay_diffusion = diff * pi2 *
                                    (1.0 / (d.nx * d.nx) + 1.0 / (d.ny * d.ny) + 1.0 / (d.nz * d.nz));

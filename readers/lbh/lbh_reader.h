@@ -390,6 +390,9 @@ LBH_HOSTDEV inline SunWeights decompose_direction(double dx, double dy, double d
       for (int k = 0; k < 3; ++k) out.direction[k] = id[k];
     }
   }
+  // rounding residue (a sun along a lattice direction or face edge) is 0: it needs no solution
+  for (int k = 0; k < 3; ++k)
+    if (best[k] < 1e-9) best[k] = 0.0;
   const double s = best[0] + best[1] + best[2];
   for (int k = 0; k < 3; ++k) out.weight[k] = static_cast<float>(best[k] / s);
   return out;
