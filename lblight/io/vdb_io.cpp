@@ -116,7 +116,7 @@ openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::s
   check_complete(path, {path.string(), {}, {}});
   openvdb::io::File file(path.string());
   try {
-    file.open();
+    file.open(/*delayLoad=*/false);  // read every leaf in readGrid below, where errors are caught
   } catch (const openvdb::Exception& e) {
     throw_invalid("cannot open " + path.string() + " as OpenVDB: " + e.what(), where);
   }
@@ -128,7 +128,15 @@ openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::s
                       (names.empty() ? "(none)" : names),
                   where);
   }
-  openvdb::GridBase::Ptr g = file.readGrid(name);
+  // Damaged grid data (not its length: check_complete saw that) surfaces here as OpenVDB's or
+  // Blosc's error; name the file and grid. Some damage crashes inside OpenVDB instead, which no
+  // reader of the format can catch.
+  openvdb::GridBase::Ptr g;
+  try {
+    g = file.readGrid(name);
+  } catch (const std::exception& e) {
+    throw_invalid("grid '" + name + "' of " + path.string() + " cannot be read (damaged data?): " + e.what(), where);
+  }
   file.close();
   return g;
 }
