@@ -280,4 +280,19 @@ TEST_CASE("compare: identical bakes pass, a different precision fails at toleran
   const CliResult lattice = run_cli("compare a c", tmp.path());
   CHECK(lattice.exit_code == 2);
   CHECK(lattice.err.find("another lattice") != std::string::npos);
+
+  // a bake that differs in the blue channel alone is told apart (every channel is compared)
+  std::string blue = kTinyScene;
+  blue.replace(blue.find("\"material\": \"cloud\""), 19,
+               R"("material": {"sigma_a": 0.01, "sigma_s": [0.79, 0.79, 0.6], "g": 0.5})");
+  std::string grey = kTinyScene;
+  grey.replace(grey.find("\"material\": \"cloud\""), 19, R"("material": {"sigma_a": 0.01, "sigma_s": 0.79, "g": 0.5})");
+  write_text(tmp / "blue.json", blue);
+  write_text(tmp / "grey.json", grey);
+  REQUIRE(run_cli("bake grey.json -o grey --backend cpu -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("bake blue.json -o blue --backend cpu -q", tmp.path()).exit_code == 0);
+  const CliResult channels = run_cli("compare grey blue --tolerance 1e-3", tmp.path());
+  INFO(channels.out << channels.err);
+  CHECK(channels.exit_code == 1);
+  CHECK(channels.out.find("ABOVE") != std::string::npos);
 }

@@ -3,6 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/omega.h"
@@ -221,4 +223,75 @@ TEST_CASE("The density range is checked after density_scale, not before", "[scen
                               "s.json");
   const ModelGrid g = load_model_grid(s.models[0], s);
   for (float d : g.density) CHECK(d == Approx(0.9f));
+}
+
+TEST_CASE("Documented defaults (docs/scene-format.md) are the parser's", "[scene]") {
+  const Scene s = parse_scene(R"({"version": 1, "models": [
+      {"name": "p", "density": {"type": "procedural"}, "material": "cloud"},
+      {"name": "m", "density": {"type": "mesh", "path": "x.obj"}, "material": "leaf"}],
+      "output": {"lbh": true}})",
+                              "s.json");
+  const ModelSpec& p = s.models[0];
+  CHECK(p.density.procedural.resolution == 48);
+  CHECK(p.density.procedural.size == 1.0);
+  CHECK(p.margin == 1);
+  CHECK(p.crop);
+  CHECK(s.models[1].density.mesh.resolution == 64);
+  CHECK(s.models[1].density.mesh.supersample == 8);
+  CHECK(s.output.lbh.enabled);
+  CHECK(s.output.lbh.threshold == 0.01);
+  CHECK(s.output.lbh.relative);
+  CHECK(s.solver.tolerance == 1e-4);
+  CHECK(s.solver.precision == Precision::Float32);
+  CHECK(s.lighting.ambient_from_sum);
+  // check_interval: (longest edge + 2) / 4 rounded down, clamped to 4..16
+  const BakePlan plan = make_plan(parse_scene(kMinimal, "s.json"));
+  const int longest = plan.models[0].lattice.dims.longest();
+  CHECK(plan.models[0].steps.check_interval == std::clamp((longest + 2) / 4, 4, 16));
+}
+
+TEST_CASE("Channels are merged only when medium and wood agree", "[scene]") {
+  // grey leaves, coloured wood: three distinct channels (wood tells them apart)
+  const Scene s = parse_scene(R"({"version": 1, "models": [{"name": "t", "density": {"type": "procedural",
+      "shape": "plant", "resolution": 16}, "material": {"sigma_a": 0.1, "sigma_s": 0.8, "g": 0.2},
+      "wood_material": {"sigma_a": [0.1, 0.2, 0.3], "sigma_s": 0.8, "g": -1}}]})",
+                              "s.json");
+  const BakePlan plan = make_plan(s);
+  REQUIRE(plan.models[0].lattice.material_count == 2);
+  CHECK(plan.models[0].channels.size() == 3);
+  // grey both: one
+  const Scene grey = parse_scene(R"({"version": 1, "models": [{"name": "t", "density": {"type": "procedural",
+      "shape": "plant", "resolution": 16}, "material": {"sigma_a": 0.1, "sigma_s": 0.8, "g": 0.2},
+      "wood_material": {"sigma_a": 0.1, "sigma_s": 0.8, "g": -1}}]})",
+                                 "s.json");
+  CHECK(make_plan(grey).models[0].channels.size() == 1);
+}
+
+TEST_CASE("B00 is derived from the sum only when all 18 directions are baked", "[scene]") {
+  const auto derived = [](const std::string& solutions) {
+    const Scene s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
+        "resolution": 8}, "material": "cloud"}], "lighting": {"solutions": ")" + solutions + R"("}})",
+                                "s.json");
+    const BakePlan plan = make_plan(s);
+    for (const SolutionPlan& sp : plan.models[0].solutions)
+      if (sp.index == 0) return sp.derived;
+    return false;
+  };
+  CHECK(derived("all"));
+  CHECK_FALSE(derived("0,2-18"));  // B01 missing
+  CHECK_FALSE(derived("0-17"));    // B18 missing
+}
+
+TEST_CASE("Overrides: --iterations N and --solutions against a static scene", "[scene]") {
+  const Scene fixed = parse_scene(std::string(kMinimal).insert(1, R"("solver": {"iterations": 30},)"), "s.json");
+  PlanOverrides ov;
+  ov.mode = IterationMode::Fixed;
+  ov.iterations = 7;
+  CHECK(make_plan(fixed, ov).models[0].steps.fixed_steps == 7);
+  CHECK(make_plan(fixed).models[0].steps.fixed_steps == 30);
+  const Scene stat = parse_scene(std::string(kMinimal).insert(1, R"("lighting": {"mode": "static",
+      "sun": {"direction": [0, 0, 1]}},)"), "s.json");
+  PlanOverrides sol;
+  sol.solutions = std::vector<int>{1};
+  CHECK_THROWS_AS(make_plan(stat, sol), Error);
 }

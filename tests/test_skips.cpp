@@ -182,6 +182,15 @@ TEST_CASE("B00 summed from the 18 directional solutions equals the solved B00", 
   const Scene autos = parse_scene(scene_text(R"({"mode": "base"})", R"({"tolerance": 1e-3})"), "s.json");
   const BakeResult c = bake(autos);
   const SolutionResult& derived = c.solutions.at(0);
+  // its iterations are the most any part ran (not their sum); converged only if every part did
+  int most = 0;
+  bool all = true;
+  for (int j = 1; j < 19; ++j) {
+    most = std::max(most, c.solutions.at(j).iterations);
+    all = all && c.solutions.at(j).converged;
+  }
+  CHECK(derived.iterations == most);
+  CHECK(derived.converged == all);
   CHECK(derived.error_estimate > 0);
   CHECK(derived.error_estimate < 1e-3);
   // ... in both norms, against B00 solved to 1e-10 in float64
@@ -299,4 +308,13 @@ TEST_CASE("A fixed sun along a lattice direction needs that one base solution", 
     c.ambient = false;
     CHECK(needed_list(c) == std::vector<int>{want});
   }
+}
+
+TEST_CASE("A fixed sun with yaw-rotated instances needs the directions of its elevation band", "[skips][sun]") {
+  SunConstraints c;
+  c.fixed_toward_sun = toward_sun_from_angles(30, 40);
+  c.rotation = InstanceRotation::Yaw;
+  c.ambient = false;
+  CHECK(needed_list(c) == brute_force_band(30, 30, false));
+  CHECK(needed_list(c).size() > 3);  // more than the three of the sun itself
 }
