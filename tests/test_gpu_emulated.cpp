@@ -29,20 +29,22 @@ struct Storage<_Float16> {
 
 namespace {
 
-// Every thread of the step launch step_launch(d) lays out, block by block, as step_kernel runs
-// them: node(x, y, z) for each thread on an interior node.
+// Every thread of the step launch step_launch(d, systems, fill) lays out, block by block, as
+// step_kernel runs them: node(x, y, z, s_begin, s_end) for each thread on an interior node.
 template <typename Node>
-void for_each_step_thread(const Dims& d, Node&& node) {
-  const gpu::StepLaunch l = gpu::step_launch(d);
+void for_each_step_thread(const Dims& d, int systems, long long fill, Node&& node) {
+  const gpu::StepLaunch l = gpu::step_launch(d, systems, fill);
   for (unsigned bz = 0; bz < l.gz; ++bz)
     for (unsigned by = 0; by < l.gy; ++by)
       for (unsigned bx = 0; bx < l.gx; ++bx)
         for (unsigned ty = 0; ty < static_cast<unsigned>(l.by); ++ty)
           for (unsigned tx = 0; tx < static_cast<unsigned>(l.bx); ++tx) {
-            int x, y, z;
-            if (l.by == 1 ? gpu::step_thread_node<true>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z)
-                          : gpu::step_thread_node<false>(d, bx, by, bz, l.bx, l.by, tx, ty, x, y, z))
-              node(x, y, z);
+            int x, y, z, s0, s1;
+            if (l.by == 1 ? gpu::step_thread_node<true>(d, l.per_group, systems, bx, by, bz, l.bx, l.by, tx, ty, x,
+                                                        y, z, s0, s1)
+                          : gpu::step_thread_node<false>(d, l.per_group, systems, bx, by, bz, l.bx, l.by, tx, ty, x,
+                                                         y, z, s0, s1))
+              node(x, y, z, s0, s1);
           }
 }
 
@@ -65,8 +67,10 @@ struct HostTables {
 template <typename T = float>
 class EmulatedGpu {
  public:
-  EmulatedGpu(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, const std::vector<SystemSpec>& batch)
-      : g_(g) {
+  // fill: step_launch's fill_threads (fewer than the default gives more systems per thread)
+  EmulatedGpu(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, const std::vector<SystemSpec>& batch,
+              long long fill = gpu::kStepFillThreads)
+      : g_(g), fill_(fill) {
     for (const auto& ch : channels) {
       tb_.ops.push_back({convert_op<float>(reduce_omega(ch.omega[0])), convert_op<float>(reduce_omega(ch.omega[1]))});
       tb_.absorb.push_back((ch.absorbs[0] ? 1u : 0u) | (ch.absorbs[1] ? 2u : 0u));
@@ -102,7 +106,8 @@ class EmulatedGpu {
   // step_kernel over the launch step_launch() lays out, block by block and thread by thread
   void step(int n) {
     for (int t = 0; t < n; ++t) {
-      for_each_step_thread(a_.d, [&](int x, int y, int z) { gpu::step_node(a_, tb_, x, y, z); });
+      for_each_step_thread(a_.d, a_.systems, fill_,
+                           [&](int x, int y, int z, int s0, int s1) { gpu::step_node(a_, tb_, x, y, z, s0, s1); });
       set_level(1 - level_);
       if (first_) {
         inflow(1 - level_);
@@ -160,6 +165,7 @@ class EmulatedGpu {
   }
 
   LatticeGeometry g_;
+  long long fill_;
   HostTables tb_;
   gpu::BatchArgs<T> a_;
   std::vector<T> state_;
@@ -174,9 +180,15 @@ TEST_CASE("GPU kernel code on an emulated grid matches the OpenMP backend", "[gp
   // 21 wide: 32 x 4 blocks (the several-row kernel); 257 wide: two 128-wide one-row blocks per
   // row, the kernel 128^3, 256^3 and the plant (118 wide) run, with blockIdx.x > 0
   const Dims d = GENERATE(Dims{21, 13, 11}, Dims{257, 6, 5});
-  INFO("lattice " << d.nx << "x" << d.ny << "x" << d.nz << ", blocks " << gpu::step_launch(d).bx << " x "
-                  << gpu::step_launch(d).by << ", " << gpu::step_launch(d).gx << " along x");
-  REQUIRE(gpu::step_launch(d).by == (d.nx == 257 ? 1 : 4));
+  // the systems split into runs: 9 of one (the default fill on a lattice this small), 2 of 5 and
+  // 4, 1 of all 9
+  const long long groups = GENERATE(9LL, 2LL, 1LL);
+  const long long fill = groups == 9 ? gpu::kStepFillThreads : groups * static_cast<long long>(d.interior_count());
+  const gpu::StepLaunch l = gpu::step_launch(d, 9, fill);
+  INFO("lattice " << d.nx << "x" << d.ny << "x" << d.nz << ", blocks " << l.bx << " x " << l.by << ", " << l.gx
+                  << " along x, " << l.groups << " groups of " << l.per_group << " systems");
+  REQUIRE(l.by == (d.nx == 257 ? 1 : 4));
+  REQUIRE(l.groups == groups);
   const LatticeGeometry g = random_lattice(d, 0.9f, 0.15, 21);
   const std::vector<ChannelMaterials> channels = {channel({0.109, 0.891, -0.12}, true), channel({0.091, 0.909, 0.09}, true),
                                                   channel({0.118, 0.882, -0.33}, false)};
@@ -184,7 +196,7 @@ TEST_CASE("GPU kernel code on an emulated grid matches the OpenMP backend", "[gp
   std::vector<SystemSpec> batch;
   for (int sol : {0, 4, 13})
     for (int c = 0; c < 3; ++c) batch.push_back(system_for(c, base_boundary(sol)));
-  EmulatedGpu<> gpu(g, channels, batch);
+  EmulatedGpu<> gpu(g, channels, batch, fill);
   auto cpu = cpu_backend()->create(g, channels, {Precision::Float32, static_cast<int>(batch.size())});
   cpu->reset(batch);
   std::vector<Residual> cpu_r;
@@ -207,6 +219,22 @@ TEST_CASE("GPU kernel code on an emulated grid matches the OpenMP backend", "[gp
   }
 }
 
+// Hits of every (node, system) pair by the launch step_launch(d, systems) lays out; 0 when each
+// interior node is stepped exactly once for every system and no boundary node is.
+long long step_launch_misses(const Dims& d, int systems) {
+  std::vector<int> hits(d.count() * static_cast<std::size_t>(systems), 0);
+  for_each_step_thread(d, systems, gpu::kStepFillThreads, [&](int x, int y, int z, int s0, int s1) {
+    for (int s = s0; s < s1; ++s) ++hits[static_cast<std::size_t>(s) * d.count() + d.index(x, y, z)];
+  });
+  long long wrong = 0;
+  for (int s = 0; s < systems; ++s)
+    for (int z = 0; z < d.nz; ++z)
+      for (int y = 0; y < d.ny; ++y)
+        for (int x = 0; x < d.nx; ++x)
+          wrong += hits[static_cast<std::size_t>(s) * d.count() + d.index(x, y, z)] != (d.is_boundary(x, y, z) ? 0 : 1);
+  return wrong;
+}
+
 TEST_CASE("The step launch covers every interior node once, in blocks of 128 threads within the grid limits",
           "[gpu-emulated]") {
   struct Want {
@@ -216,23 +244,44 @@ TEST_CASE("The step launch covers every interior node once, in blocks of 128 thr
   for (const Want w : {Want{118, 128}, Want{128, 128}, Want{256, 128}, Want{130, 32}, Want{64, 64}, Want{34, 64},
                        Want{3, 32}, Want{200, 32}, Want{190, 64}}) {
     for (const int ny : {3, 7, 21}) {
-      const Dims d{w.nx, ny, 4};
-      INFO("lattice " << d.nx << " x " << d.ny << " x " << d.nz);
-      const gpu::StepLaunch l = gpu::step_launch(d);
-      CHECK(l.bx == w.bx);
-      CHECK(l.bx * l.by == gpu::kStepThreads);
-      CHECK(l.gx <= 2147483647LL);
-      CHECK(l.gy <= 65535);
-      CHECK(l.gz <= 65535);
-      std::vector<int> hits(d.count(), 0);
-      for_each_step_thread(d, [&](int x, int y, int z) { ++hits[d.index(x, y, z)]; });
-      long long wrong = 0;
-      for (int z = 0; z < d.nz; ++z)
-        for (int y = 0; y < d.ny; ++y)
-          for (int x = 0; x < d.nx; ++x) wrong += hits[d.index(x, y, z)] != (d.is_boundary(x, y, z) ? 0 : 1);
-      CHECK(wrong == 0);
+      for (const int systems : {1, 5}) {
+        const Dims d{w.nx, ny, 4};
+        INFO("lattice " << d.nx << " x " << d.ny << " x " << d.nz << ", " << systems << " systems");
+        const gpu::StepLaunch l = gpu::step_launch(d, systems);
+        CHECK(l.bx == w.bx);
+        CHECK(l.bx * l.by == gpu::kStepThreads);
+        CHECK(l.gx <= 2147483647LL);
+        CHECK(l.gy <= 65535);
+        CHECK(l.gz <= 65535);
+        CHECK(step_launch_misses(d, systems) == 0);
+      }
     }
   }
+}
+
+TEST_CASE("Small lattices split their systems into groups along the grid's z; large ones run all per thread",
+          "[gpu-emulated]") {
+  struct Want {
+    Dims d;
+    int systems, groups, per_group;
+  };
+  for (const Want w : {Want{{32, 32, 32}, 57, 19, 3},     // 27k interior nodes: 19 x 3 systems, 513k threads
+                       Want{{64, 64, 64}, 15, 3, 5},      // 238k: 3 x 5
+                       Want{{128, 128, 128}, 3, 1, 3},    // 2M: already fills the GPU
+                       Want{{48, 48, 48}, 44, 6, 8},      // the procedural default: 97k x 6 groups (5 of 8, 1 of 4)
+                       Want{{16, 16, 16}, 64, 64, 1},     // 2744 nodes: one system per thread
+                       Want{{3, 3, 40000}, 64, 1, 64}}) { // 39998 planes: the grid's z allows one copy
+    INFO("lattice " << w.d.nx << " x " << w.d.ny << " x " << w.d.nz << ", " << w.systems << " systems");
+    const gpu::StepLaunch l = gpu::step_launch(w.d, w.systems);
+    CHECK(l.groups == w.groups);
+    CHECK(l.per_group == w.per_group);
+    CHECK(l.gz == static_cast<long long>(w.d.nz - 2) * l.groups);
+    CHECK(l.gz <= 65535);
+    CHECK(static_cast<long long>(l.groups - 1) * l.per_group < w.systems);  // no empty group
+    if (w.d.count() <= 40000 * 9) CHECK(step_launch_misses(w.d, w.systems) == 0);
+  }
+  CHECK(step_launch_misses({21, 13, 11}, 7) == 0);  // 7 groups of 1
+  CHECK(step_launch_misses({34, 20, 9}, 57) == 0);  // 57 groups of 1, several rows per block
 }
 
 TEST_CASE("float16 storage (GPU mode, emulated): error against float32 reported and bounded", "[gpu-emulated]") {

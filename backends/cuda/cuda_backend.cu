@@ -53,14 +53,14 @@ struct DeviceTables {
 constexpr int kStepBlock = 128;  // inflow_kernel's block
 constexpr int kReduceBlock = 256;
 
-// One thread per interior node as step_launch() lays them out (lb_device.h).
+// One thread per interior node and run of systems, as step_launch() lays them out (lb_device.h).
 template <typename T, bool OneRow>
-__global__ void step_kernel(BatchArgs<T> a) {
-  int x, y, z;
-  if (!step_thread_node<OneRow>(a.d, blockIdx.x, blockIdx.y, blockIdx.z, blockDim.x, blockDim.y, threadIdx.x,
-                                threadIdx.y, x, y, z))
+__global__ void step_kernel(BatchArgs<T> a, int per_group) {
+  int x, y, z, s_begin, s_end;
+  if (!step_thread_node<OneRow>(a.d, per_group, a.systems, blockIdx.x, blockIdx.y, blockIdx.z, blockDim.x,
+                                blockDim.y, threadIdx.x, threadIdx.y, x, y, z, s_begin, s_end))
     return;
-  step_node(a, DeviceTables{}, x, y, z);
+  step_node(a, DeviceTables{}, x, y, z, s_begin, s_end);
 }
 
 template <typename T>
@@ -273,11 +273,11 @@ dim3 interior_grid(const Dims& d, int block) {
 // Launches step_kernel over the interior (one step of every system in a).
 template <typename T>
 void launch_step(const BatchArgs<T>& a) {
-  const StepLaunch l = step_launch(a.d);
+  const StepLaunch l = step_launch(a.d, a.systems);
   const dim3 grid(static_cast<unsigned>(l.gx), static_cast<unsigned>(l.gy), static_cast<unsigned>(l.gz));
   const dim3 block(static_cast<unsigned>(l.bx), static_cast<unsigned>(l.by));
-  if (l.by == 1) step_kernel<T, true><<<grid, block>>>(a);
-  else step_kernel<T, false><<<grid, block>>>(a);
+  if (l.by == 1) step_kernel<T, true><<<grid, block>>>(a, l.per_group);
+  else step_kernel<T, false><<<grid, block>>>(a, l.per_group);
   GPU_CHECK(gpuGetLastError());
 }
 

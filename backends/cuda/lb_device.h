@@ -47,14 +47,15 @@ struct BatchArgs {
 //   int channel(int s); unsigned absorb_bits(int c); float boundary(int s, int m);
 //   const CollisionOp<float>& op(int c, int k);
 
-// One LB step for interior node (x, y, z) of every system in the batch.
+// One LB step for interior node (x, y, z) of systems [s_begin, s_end) of the batch.
 template <typename T, typename Tables>
-LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& tb, int x, int y, int z) {
+LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& tb, int x, int y, int z, int s_begin,
+                                           int s_end) {
   const std::size_t i = a.d.index(x, y, z);
   const float rho = a.density[i];
   const unsigned k = a.material[i];
   const long long sy = a.d.nx, sz = static_cast<long long>(a.d.nx) * a.d.ny;
-  for (int s = 0; s < a.systems; ++s) {
+  for (int s = s_begin; s < s_end; ++s) {
     const int c = tb.channel(s);
     const T* src = a.cur + s * a.system_stride + i;
     T* dst = a.next + s * a.system_stride + i;
@@ -150,12 +151,21 @@ LBL_HOSTDEV inline void combine(double (&acc)[kReduceSlots], const double* other
 // bx is the width in {128, 64, 32} that pads a row's nx - 1 threads least (the widest on ties):
 // nx = 130 with 128-wide blocks would spend half its blocks on one node each, and nx <= 64 would
 // leave half of every block idle.
+//
+// A thread steps its node for a run of the batch's systems. One run of all of them when the
+// interior alone gives kStepFillThreads threads; a small lattice splits its systems into groups,
+// one per copy of the z planes along the grid's z (block z = group * (nz - 2) + plane), so that
+// 32^3 with 57 systems launches 19 x 27k threads of 3 systems each instead of 27k threads of 57,
+// a quarter of what an H100 holds resident (132 SMs x 6 blocks of 128).
 inline constexpr int kStepThreads = 128;
+inline constexpr long long kStepFillThreads = 512 * 1024;
 struct StepLaunch {
   int bx = kStepThreads, by = 1;       // block shape
   long long gx = 0, gy = 0, gz = 0;    // grid, in blocks
+  int per_group = 1;                   // systems per thread (the last group may have fewer)
+  int groups = 1;                      // copies of the z planes, one per run of systems
 };
-inline StepLaunch step_launch(const Dims& d) {
+inline StepLaunch step_launch(const Dims& d, int systems, long long fill_threads = kStepFillThreads) {
   StepLaunch l;
   const long long row = d.nx - 1;  // threads x = 0 .. nx - 2
   long long best = -1;
@@ -169,19 +179,34 @@ inline StepLaunch step_launch(const Dims& d) {
   l.by = kStepThreads / l.bx;
   l.gx = (row + l.bx - 1) / l.bx;
   l.gy = (d.ny - 2 + l.by - 1) / l.by;
-  l.gz = d.nz - 2;
+  const long long planes = d.nz - 2 > 0 ? d.nz - 2 : 1;
+  const long long interior = d.interior_count() > 0 ? static_cast<long long>(d.interior_count()) : 1;
+  long long groups = (fill_threads + interior - 1) / interior;
+  if (groups > systems) groups = systems;
+  if (groups > 65535 / planes) groups = 65535 / planes;  // the grid's z limit
+  if (groups < 1) groups = 1;
+  l.per_group = static_cast<int>((systems + groups - 1) / groups);
+  if (l.per_group < 1) l.per_group = 1;
+  l.groups = static_cast<int>((systems + l.per_group - 1) / l.per_group);  // no empty group
+  if (l.groups < 1) l.groups = 1;
+  l.gz = planes * l.groups;
   return l;
 }
-// The node of thread (tx, ty) in block (bx, by, bz) of such a launch (block shape bdx x bdy);
-// false for threads off the interior, which return at once. OneRow (by == 1) is the same with
-// y the same for the whole block: row addresses then stay in the GPU's per-warp uniform
-// registers (float16 step: 80 registers instead of 96, 6 blocks per SM instead of 5).
+// The node of thread (tx, ty) in block (bx, by, bz) of such a launch (block shape bdx x bdy) and
+// the systems [s_begin, s_end) it steps; false for threads off the interior, which return at once.
+// OneRow (by == 1) is the same with y the same for the whole block: row addresses can then stay
+// in the GPU's per-warp uniform registers (register counts: docs/performance.md).
 template <bool OneRow>
-LBL_HOSTDEV inline bool step_thread_node(const Dims& d, unsigned bx, unsigned by, unsigned bz, unsigned bdx,
-                                         unsigned bdy, unsigned tx, unsigned ty, int& x, int& y, int& z) {
+LBL_HOSTDEV inline bool step_thread_node(const Dims& d, int per_group, int systems, unsigned bx, unsigned by,
+                                         unsigned bz, unsigned bdx, unsigned bdy, unsigned tx, unsigned ty, int& x,
+                                         int& y, int& z, int& s_begin, int& s_end) {
+  const unsigned planes = static_cast<unsigned>(d.nz - 2);
+  const unsigned group = bz / planes;  // block-uniform
   x = static_cast<int>(bx * bdx + tx);
   y = OneRow ? 1 + static_cast<int>(by) : 1 + static_cast<int>(by * bdy + ty);
-  z = 1 + static_cast<int>(bz);
+  z = 1 + static_cast<int>(bz - group * planes);
+  s_begin = static_cast<int>(group) * per_group;
+  s_end = s_begin + per_group < systems ? s_begin + per_group : systems;
   return x >= 1 && x < d.nx - 1 && (OneRow || y < d.ny - 1);
 }
 
