@@ -2,6 +2,8 @@
 // evened out; and the CUDA backend's fill rule (backends/cuda/lb_device.h, host code).
 #include <catch2/catch.hpp>
 
+#include <chrono>
+
 #include "backends/cuda/lb_device.h"
 #include "lblight/core/error.h"
 #include "tests/test_support.h"
@@ -96,4 +98,35 @@ TEST_CASE("CUDA batches: small lattices share launches, 128^3 runs a solution at
   CHECK(batch_capacity(big.mp, PlanningBackend(gpu::systems_to_fill({128, 128, 128}, 57), 0), {}) == 3);
   PlanFixture mid(19, 3, {64, 64, 64});
   CHECK(batch_capacity(mid.mp, PlanningBackend(gpu::systems_to_fill({64, 64, 64}, 57), 0), {}) == 15);
+}
+
+TEST_CASE("Solutions sharing a batch share its wall time: their seconds add up to at most the bake's", "[batching][bake]") {
+  // docs/output-format.md, `seconds`: a batch's time is split evenly among its solutions. A grey
+  // material gives one system per solution, so three solutions run as one batch of three.
+  const Scene scene = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
+      "shape": "box", "resolution": 12}, "material": {"sigma_a": 0.01, "sigma_s": 0.79, "g": 0}}],
+      "lighting": {"solutions": "1,2,3"}, "solver": {"iterations": 300}})",
+                                  "s.json");
+  const BakePlan plan = make_plan(scene);
+  const ModelPlan& mp = plan.models.at(0);
+  REQUIRE(mp.systems() == 3);
+  BakeOptions opt;
+  opt.max_systems = 3;
+  const auto backend = test::cpu_backend();
+  REQUIRE(batch_capacity(mp, *backend, opt) == 3);
+  struct Seconds final : BakeObserver {
+    std::vector<double> seconds;
+    void solution_done(const ModelPlan&, SolutionResult& r) override { seconds.push_back(r.seconds); }
+  } seen;
+  const auto t0 = std::chrono::steady_clock::now();
+  bake_model(mp, *backend, opt, seen);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  REQUIRE(seen.seconds.size() == 3);
+  double sum = 0;
+  for (double s : seen.seconds) {
+    CHECK(s > 0);
+    sum += s;
+  }
+  INFO("solutions' seconds " << sum << ", bake_model's wall time " << wall);
+  CHECK(sum <= wall);
 }

@@ -1,4 +1,5 @@
-// The error estimate (solve/convergence.h) and the BiCGStab solver (solve/krylov.h).
+// The error estimate (solve/convergence.h), the BiCGStab solver (solve/krylov.h) and the report
+// built on them (solve/report.h).
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -6,12 +7,32 @@
 #include "lblight/lattice/sun.h"
 #include "lblight/solve/convergence.h"
 #include "lblight/solve/krylov.h"
+#include "lblight/solve/report.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
 
 namespace {
+// lblight report on a small box with one plain float32 run of B05. Channel albedos differ, green
+// highest (the slowest to converge), so the report's default channel is green.
+struct SmallReport {
+  Scene scene = parse_scene(R"({"version": 1, "models": [{"name": "m", "density": {"type": "procedural",
+      "shape": "box", "resolution": 8}, "material": {"sigma_a": [0.3, 0.02, 0.15], "sigma_s": [0.5, 0.78, 0.65],
+      "g": 0}}], "lighting": {"solutions": "5"}, "solver": {"tolerance": 1e-3}})",
+                            "s.json");
+  BakePlan plan = make_plan(scene);
+  ReportOptions opt;
+  Report report;
+  SmallReport() {
+    opt.solutions = {5};
+    opt.runs = {{SolverMethod::Plain, Precision::Float32}};
+    const auto backend = cpu_backend();
+    report = make_report(plan, *backend, *backend, opt, [](const std::string&) {});
+  }
+  const ReportCurve& curve() const { return report.curves.at(0); }
+};
+
 Residual change(double rel) {
   Residual r;
   r.diff_sq = rel * rel;
@@ -140,4 +161,39 @@ TEST_CASE("BiCGStab in float32 reaches 1e-4 on a dense cube in a fraction of the
   INFO(kr.steps << " steps, relative L2 error " << std::sqrt(e2 / t2));
   CHECK(std::sqrt(e2 / t2) < 1e-4);
   CHECK(kr.steps < 33 * 26 / 4);
+}
+
+TEST_CASE("report studies the channel with the highest albedo by default", "[report]") {
+  // the slowest channel to converge is where the solver's estimate matters most
+  const SmallReport r;
+  REQUIRE(r.report.curves.size() == 1);
+  CHECK(r.curve().channel == "green");
+  CHECK(r.report.references.at(0).channel == "green");
+}
+
+TEST_CASE("report runs continue below the tolerance down to tolerance / depth", "[report]") {
+  // the curve shows how the error keeps falling past where bake would stop
+  const SmallReport r;
+  const ReportCurve& c = r.curve();
+  CHECK(r.report.tolerance == 1e-3);
+  REQUIRE(c.stop_step > 0);
+  REQUIRE_FALSE(c.points.empty());
+  CHECK(c.points.back().step > c.stop_step);
+  CHECK(c.points.back().estimate_l2 < r.report.tolerance / r.opt.depth);
+}
+
+TEST_CASE("report's steps to tolerance are where the true error first reaches it", "[report]") {
+  const SmallReport r;
+  const ReportCurve& c = r.curve();
+  const ReportPoint* first = nullptr;
+  int below = 0;
+  for (const ReportPoint& p : c.points)
+    if (p.true_l2 <= r.report.tolerance) {
+      if (!first) first = &p;
+      ++below;
+    }
+  REQUIRE(first);
+  REQUIRE(below > 1);  // later checks are below it too: the first one counts
+  CHECK(c.steps_to_tolerance == first->step);
+  CHECK(c.seconds_to_tolerance == first->seconds);
 }

@@ -13,7 +13,9 @@
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 
+#include "lblight/core/error.h"
 #include "lblight/core/serial_worker.h"
+#include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/io/vdb_stream_writer.h"
 #include "tests/test_support.h"
@@ -244,4 +246,45 @@ TEST_CASE("Output written on a background worker equals output written inline", 
   const auto mb = nlohmann::json::parse(read_text(tmp / "background" / "manifest.json"));
   CHECK(without_times(ma["models"]) == without_times(mb["models"]));
   CHECK(ma["models"][0]["solutions"][0]["grid"] == "B00");  // the manifest stays in index order
+}
+
+TEST_CASE("A committed output replaces the earlier one and leaves no copy of it behind", "[io]") {
+  // the earlier output is moved aside while the new one moves in; once in place, the old one goes
+  TempDir tmp;
+  const fs::path target = tmp / "out";
+  fs::create_directories(target);
+  write_text(target / "manifest.json", R"({"lblight_version": "0.1", "models": []})");
+  write_text(target / "old.vdb", std::string(1000, 'x'));
+  {
+    StagedDirectory dir(target, OutputKind::Bake);
+    write_text(dir.path("manifest.json"), R"({"lblight_version": "0.2", "models": []})");
+    dir.commit();
+  }
+  CHECK_FALSE(fs::exists(target / "old.vdb"));
+  CHECK(read_text(target / "manifest.json").find("0.2") != std::string::npos);
+  std::vector<std::string> beside;
+  for (const auto& e : fs::directory_iterator(tmp.path())) beside.push_back(e.path().filename().string());
+  CHECK(beside == std::vector<std::string>{"out"});
+}
+
+TEST_CASE("Only a marker file with lblight's own keys makes a folder an earlier output", "[io]") {
+  // a manifest.json or report.json written by anything else is not ours to delete, even alone
+  TempDir tmp;
+  const auto folder_with = [&](const std::string& name, const std::string& file, const std::string& text) {
+    fs::create_directories(tmp / name);
+    write_text(tmp / name / file, text);
+    return tmp / name;
+  };
+  const fs::path extension = folder_with("ext", "manifest.json", R"({"name": "my-extension", "manifest_version": 3})");
+  CHECK_THROWS_AS(StagedDirectory::check_target(extension, OutputKind::Bake), Error);
+  const fs::path half = folder_with("half", "manifest.json", R"({"lblight_version": "0.1"})");
+  CHECK_THROWS_AS(StagedDirectory::check_target(half, OutputKind::Bake), Error);
+  const fs::path other_report = folder_with("rep", "report.json", R"({"curves": []})");
+  CHECK_THROWS_AS(StagedDirectory::check_target(other_report, OutputKind::Report), Error);
+  // lblight's own markers are accepted
+  const fs::path bake = folder_with("bake", "manifest.json", R"({"lblight_version": "0.1", "models": []})");
+  CHECK_NOTHROW(StagedDirectory::check_target(bake, OutputKind::Bake));
+  const fs::path report = folder_with("report", "report.json", R"({"curves": [], "references": []})");
+  CHECK_NOTHROW(StagedDirectory::check_target(report, OutputKind::Report));
+  CHECK(fs::exists(extension / "manifest.json"));
 }

@@ -190,6 +190,31 @@ TEST_CASE("Procedural sources are deterministic and in range", "[scene]") {
   for (float d : a.density) REQUIRE((d >= 0.0f && d <= 1.0f));
 }
 
+TEST_CASE("The procedural plant stands on z = 0 centred on the vertical axis", "[scene]") {
+  // docs/scene-format.md: "a small tree standing on z = 0 at the origin"; voxels are cells, so
+  // the lowest layer's bottom faces lie on z = 0 and the grid spans z = 0 .. size
+  const Scene s = parse_scene(R"({"version": 1, "models": [
+      {"name": "p", "density": {"type": "procedural", "shape": "plant", "resolution": 20, "size": 2.0},
+       "material": "leaf", "wood_material": "bark"}]})", "s.json");
+  const ModelGrid g = load_model_grid(s.models[0], s);
+  const auto& m = g.index_to_world;
+  // world coordinate along axis r of the face of index coordinate `index` (a cell centre is integral)
+  const auto world = [&](int r, double index) { return m[r * 4 + r] * index + m[r * 4 + 3]; };
+  CHECK(m[10] == Approx(2.0 / 20));
+  CHECK(world(2, g.index_min[2] - 0.5) == Approx(0.0).margin(1e-12));
+  CHECK(world(2, g.index_min[2] + g.dims.nz - 0.5) == Approx(2.0));
+  CHECK(world(0, g.index_min[0] - 0.5) == Approx(-world(0, g.index_min[0] + g.dims.nx - 0.5)));
+  CHECK(world(1, g.index_min[1] - 0.5) == Approx(-world(1, g.index_min[1] + g.dims.ny - 0.5)));
+  // the trunk reaches the ground: the lowest layer holds wood
+  std::size_t wood_on_ground = 0;
+  for (int y = 0; y < g.dims.ny; ++y)
+    for (int x = 0; x < g.dims.nx; ++x) {
+      const std::size_t i = g.dims.index(x, y, 0);
+      wood_on_ground += g.material[i] == kMaterialWood && g.density[i] > 0.0f;
+    }
+  CHECK(wood_on_ground > 0);
+}
+
 TEST_CASE("Auto iterations never stop before light can cross the lattice", "[scene]") {
   const Scene s = parse_scene(kMinimal, "s.json");
   const BakePlan p = make_plan(s);

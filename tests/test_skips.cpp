@@ -6,6 +6,8 @@
 #include <cmath>
 #include <map>
 
+#include <nlohmann/json.hpp>
+
 #include "lblight/backend/backend.h"
 #include "lblight/core/relative_gap.h"
 #include "lblight/lattice/d3q19.h"
@@ -317,4 +319,96 @@ TEST_CASE("A fixed sun with yaw-rotated instances needs the directions of its el
   c.ambient = false;
   CHECK(needed_list(c) == brute_force_band(30, 30, false));
   CHECK(needed_list(c).size() > 3);  // more than the three of the sun itself
+}
+
+TEST_CASE("A sun at the zenith needs the straight-down direction even at a band's lower end", "[skips][sun]") {
+  // Direction 6 (0, 0, -1) is weighted only by suns near the zenith, and fully by the zenith
+  // itself: a band or yaw-rotated sun that ends exactly at 90 degrees must keep it.
+  SunConstraints band;
+  band.min_elevation = 90;
+  band.max_elevation = 90;
+  band.rotation = InstanceRotation::Yaw;
+  CHECK(needed_list(band) == std::vector<int>{0, 6});
+  CHECK(needed_list(band) == brute_force_band(90, 90, true));
+  SunConstraints fixed;
+  fixed.fixed_toward_sun = Vec3d{0, 0, 1};
+  fixed.rotation = InstanceRotation::Yaw;
+  fixed.ambient = false;
+  CHECK(needed_list(fixed) == std::vector<int>{6});
+}
+
+TEST_CASE("Suns a twentieth of a degree below the zenith need the directions around straight down",
+          "[skips][sun]") {
+  // Tilted by 0.05 degrees, the sun puts a small but non-zero weight on the directions beside
+  // (0, 0, -1) at every azimuth: the selection's slack must be far below that.
+  SunConstraints c;
+  c.min_elevation = 89.95;
+  c.max_elevation = 89.95;
+  c.rotation = InstanceRotation::Yaw;
+  const std::vector<int> got = needed_list(c);
+  CHECK(got == brute_force_band(89.95, 89.95, true));
+  CHECK(got.size() > 2);
+}
+
+TEST_CASE("A --solutions override of a sun-derived selection reports nothing left out that a sun selects",
+          "[skips][scene]") {
+  // solutions_left_out lists what no allowed sun selects (docs/output-format.md); solutions the
+  // user simply did not ask for on the command line are not that.
+  const Scene yaw = parse_scene(scene_text(R"({"sun_range": {"min_elevation": 0}, "instance_rotation": "yaw"})", "{}"),
+                                "s.json");
+  CHECK(make_plan(yaw).models[0].savings.solutions_left_out.size() == 5);
+  PlanOverrides ov;
+  ov.solutions = std::vector<int>{1};
+  const BakePlan plan = make_plan(yaw, ov);
+  REQUIRE(plan.models[0].solutions.size() == 1);
+  const auto need = needed_base_solutions(yaw.lighting.sun_constraints);
+  for (int j : plan.models[0].savings.solutions_left_out) {
+    INFO("B" << j << " reported left out");
+    CHECK_FALSE(need[static_cast<std::size_t>(j)]);
+  }
+}
+
+TEST_CASE("The summed B00's error estimates are the documented sums over its parts", "[skips][bake]") {
+  // docs/output-format.md: sum_j eps_j ||B_j|| / ||B00|| in the L2 norm, and the same with peak
+  // values in the max norm (each part's error adds up; the worst part alone does not bound it).
+  const Scene s = parse_scene(scene_text(R"({"mode": "base"})", R"({"tolerance": 1e-4})"), "s.json");
+  const BakeResult r = bake(s);
+  REQUIRE(r.plan.models[0].savings.ambient_from_sum);
+  double l2 = 0, mx = 0;
+  for (int j = 1; j < 19; ++j) {
+    const SolutionResult& p = r.solutions.at(j);
+    double norm_sq = 0, peak = 0;
+    for (const auto& t : p.totals)
+      for (float v : t) {
+        norm_sq += static_cast<double>(v) * v;
+        peak = std::max(peak, static_cast<double>(v));
+      }
+    l2 += p.error_estimate * std::sqrt(norm_sq);
+    mx += p.error_estimate_max * peak;
+  }
+  double norm_sq = 0, peak = 0;
+  for (const auto& t : r.solutions.at(0).totals)
+    for (float v : t) {
+      norm_sq += static_cast<double>(v) * v;
+      peak = std::max(peak, static_cast<double>(v));
+    }
+  REQUIRE(std::isfinite(mx));
+  REQUIRE(mx > 0);
+  CHECK(r.solutions.at(0).error_estimate == Approx(l2 / std::sqrt(norm_sq)).epsilon(1e-4));
+  CHECK(r.solutions.at(0).error_estimate_max == Approx(mx / peak).epsilon(1e-4));
+}
+
+TEST_CASE("The manifest's work fraction counts lattice updates against 19 solutions x 3 channels", "[skips][io]") {
+  // docs/output-format.md's example: B00 from the sum, 18 of 19 solutions solved in 3 channels
+  // on the uncropped lattice, is 18 / 19 = 0.947 of the work.
+  TempDir tmp;
+  const Scene s = parse_scene(scene_text(R"({"mode": "base"})", R"({"iterations": 2})", R"(, "crop": false)"),
+                              tmp / "s.json");
+  const BakedModel baked = bake_first_model(s, tmp / "out");
+  REQUIRE(baked.model().channels.size() == 3);
+  const nlohmann::json m = nlohmann::json::parse(read_text(tmp / "out" / "manifest.json"));
+  const nlohmann::json& savings = m["models"][0]["savings"];
+  CHECK(savings["solutions_solved"] == 18);
+  CHECK(savings["cropped"] == false);
+  CHECK(savings["work_fraction"].get<double>() == Approx(18.0 / 19.0));
 }

@@ -1,15 +1,44 @@
-// Bake outputs reopen with OpenVDB and carry the right grids, transform and metadata.
+// Bake outputs reopen with OpenVDB and carry the right grids, transform and metadata; density
+// inputs read from .vdb keep to the documented rules (background, wood grid, transform).
 #include <catch2/catch.hpp>
 
 #include <cmath>
 #include <map>
 
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+
 #include "lblight/io/bake_output.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/scene/load_model.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
+
+namespace {
+// A 4x4x4 float grid filled with `value`, written by OpenVDB itself (for inputs lblight's own
+// writer never makes: another background, another transform).
+openvdb::FloatGrid::Ptr cube_grid(const std::string& name, float value, float background, double voxel) {
+  openvdb::initialize();
+  auto g = openvdb::FloatGrid::create(background);
+  g->setName(name);
+  g->setTransform(openvdb::math::Transform::createLinearTransform(voxel));
+  g->fill(openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(3)), value, true);
+  return g;
+}
+void write_grids(const std::filesystem::path& file, const openvdb::GridPtrVec& grids) {
+  openvdb::io::File(file.string()).write(grids);
+}
+// The density grid of a scene whose one model reads `wood_grid` (if any) beside "density" from grid.vdb.
+ModelGrid load_vdb_model(const TempDir& tmp, const std::string& wood_grid = "") {
+  const Scene scene = parse_scene(R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb",
+      "path": "grid.vdb")" + (wood_grid.empty() ? std::string() : R"(, "wood_grid": ")" + wood_grid + "\"") +
+                                      R"(}, "material": "cloud"}]})",
+                                  tmp / "s.json");
+  return load_model_grid(scene.models.at(0), scene);
+}
+}  // namespace
 
 TEST_CASE("Output .vdb holds density, brown and B grids with transform and metadata", "[io]") {
   TempDir tmp;
@@ -138,4 +167,74 @@ TEST_CASE("Static lighting equals intensity x B_j + ambient x B00 for suns along
     }
     std::filesystem::remove_all(tmp / "static");
   }
+}
+
+TEST_CASE("A density grid's rotated anisotropic transform gives the manifest's voxel size per index axis", "[io]") {
+  // voxel_size is the world length of one step along each index axis: the norm of the transform's
+  // column, which only differs from its row's when the grid is rotated and not uniformly scaled
+  TempDir tmp;
+  const double c = std::cos(M_PI / 6), s = std::sin(M_PI / 6);
+  const DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {c * 0.1, -s * 0.2, 0, 1, s * 0.1, c * 0.2, 0, 2, 0, 0, 0.3, 3, 0, 0, 0, 1}};
+  const std::vector<float> density(frame.dims.count(), 0.5f);
+  write_vdb(tmp / "grid.vdb", frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
+  const Scene scene = parse_scene(R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb",
+      "path": "grid.vdb"}, "material": "cloud"}], "lighting": {"solutions": "1"}, "solver": {"iterations": 2}})",
+                                  tmp / "s.json");
+  bake_first_model(scene, tmp / "out");
+  const nlohmann::json manifest = nlohmann::json::parse(read_text(tmp / "out" / "manifest.json"));
+  const auto vs = manifest["models"][0]["lattice"]["voxel_size"];
+  REQUIRE(vs.size() == 3);
+  CHECK(vs[0].get<double>() == Approx(0.1));
+  CHECK(vs[1].get<double>() == Approx(0.2));
+  CHECK(vs[2].get<double>() == Approx(0.3));
+}
+
+TEST_CASE("A density grid must have background 0", "[io][validate]") {
+  // inactive voxels read as the background: anything but empty space there is refused
+  TempDir tmp;
+  write_grids(tmp / "grid.vdb", {cube_grid("density", 0.5f, 0.25f, 0.1)});
+  try {
+    load_vdb_model(tmp);
+    FAIL("a density grid with background 0.25 was accepted");
+  } catch (const Error& e) {
+    CHECK(e.category() == ErrorCategory::InvalidInput);
+    CHECK(std::string(e.what()).find("background") != std::string::npos);
+  }
+  write_grids(tmp / "grid.vdb", {cube_grid("density", 0.5f, 0.0f, 0.1)});
+  CHECK(load_vdb_model(tmp).occupied_nodes() == 64);
+}
+
+TEST_CASE("Wood grid voxels above 0.5 are wood and those at or below are not", "[io]") {
+  // docs/scene-format.md: a float wood grid marks wood where its value is > 0.5
+  TempDir tmp;
+  const DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}};
+  const std::vector<float> density(64, 0.5f);
+  std::vector<float> wood(64, 0.0f);
+  for (std::size_t i = 0; i < 16; ++i) wood[i] = 0.3f;
+  for (std::size_t i = 16; i < 32; ++i) wood[i] = 0.5f;
+  for (std::size_t i = 48; i < 64; ++i) wood[i] = 1.0f;
+  write_vdb(tmp / "grid.vdb", frame, {{"density", &density, nullptr, true, {}}, {"wood", &wood, nullptr, false, {}}},
+            nlohmann::json::object());
+  const ModelGrid g = load_vdb_model(tmp, "wood");
+  REQUIRE(g.dims == frame.dims);
+  for (std::size_t i = 0; i < 64; ++i) {
+    INFO("node " << i << ", wood grid value " << wood[i]);
+    CHECK((g.material[i] == 1) == (wood[i] > 0.5f));
+  }
+  CHECK(g.wood_nodes() == 16);
+}
+
+TEST_CASE("A wood grid must share the density grid's transform", "[io][validate]") {
+  // voxels of differently placed grids do not correspond: refused rather than misread
+  TempDir tmp;
+  write_grids(tmp / "grid.vdb", {cube_grid("density", 0.5f, 0.0f, 0.1), cube_grid("wood", 1.0f, 0.0f, 0.05)});
+  try {
+    load_vdb_model(tmp, "wood");
+    FAIL("a wood grid with another transform was accepted");
+  } catch (const Error& e) {
+    CHECK(e.category() == ErrorCategory::InvalidInput);
+    CHECK(std::string(e.what()).find("transform") != std::string::npos);
+  }
+  write_grids(tmp / "grid.vdb", {cube_grid("density", 0.5f, 0.0f, 0.1), cube_grid("wood", 1.0f, 0.0f, 0.1)});
+  CHECK(load_vdb_model(tmp, "wood").wood_nodes() == 64);
 }
