@@ -48,6 +48,15 @@ void for_each_step_thread(const Dims& d, int systems, long long fill, Node&& nod
           }
 }
 
+// Every node of the inflow launch inflow_launch(d) lays out, block by block, as inflow_kernel
+// runs them.
+template <typename Node>
+void for_each_inflow_node(const Dims& d, Node&& node) {
+  const gpu::InflowLaunch l = gpu::inflow_launch(d);
+  for (long long b = 0; b < l.blocks; ++b)
+    for (int tx = 0; tx < gpu::kInflowThreads; ++tx) gpu::inflow_thread_nodes(d, l, b, tx, gpu::kInflowThreads, node);
+}
+
 struct HostTables {
   std::vector<int> channels;
   std::vector<std::array<float, 19>> boundaries;
@@ -153,9 +162,7 @@ class EmulatedGpu {
   void inflow(int level) {
     const Dims& d = a_.d;
     T* target = state_.data() + static_cast<long long>(level) * 19 * a_.stride;
-    for (int z = 1; z < d.nz - 1; ++z)
-      for (int y = 1; y < d.ny - 1; ++y)
-        for (int x = 1; x < d.nx - 1; ++x) gpu::inflow_node(a_, tb_, target, false, x, y, z);
+    for_each_inflow_node(d, [&](int x, int y, int z) { gpu::inflow_node(a_, tb_, target, false, x, y, z); });
   }
 
   void set_level(int level) {
@@ -282,6 +289,34 @@ TEST_CASE("Small lattices split their systems into groups along the grid's z; la
   }
   CHECK(step_launch_misses({21, 13, 11}, 7) == 0);  // 7 groups of 1
   CHECK(step_launch_misses({34, 20, 9}, 57) == 0);  // 57 groups of 1, several rows per block
+}
+
+TEST_CASE("The inflow launch visits every boundary-fed interior node once and no other", "[gpu-emulated]") {
+  // shapes with one, two, three and many interior nodes per axis (the degenerate shells)
+  const std::vector<Dims> shapes = {{3, 3, 3},   {4, 3, 3},   {3, 4, 5},    {5, 5, 5},   {6, 3, 7},
+                                    {21, 13, 11}, {257, 6, 5}, {130, 34, 9}, {3, 40, 40}, {40, 3, 40}};
+  for (const Dims& d : shapes) {
+    INFO("lattice " << d.nx << " x " << d.ny << " x " << d.nz);
+    std::vector<int> hits(d.count(), 0);
+    for_each_inflow_node(d, [&](int x, int y, int z) {
+      REQUIRE(!d.is_boundary(x, y, z));
+      ++hits[d.index(x, y, z)];
+    });
+    long long wrong = 0;
+    for (int z = 1; z < d.nz - 1; ++z)
+      for (int y = 1; y < d.ny - 1; ++y)
+        for (int x = 1; x < d.nx - 1; ++x) {
+          bool fed = false;
+          for (int m = 1; m < 19; ++m) fed = fed || fed_by_boundary(d, x, y, z, m);
+          wrong += hits[d.index(x, y, z)] != (fed ? 1 : 0);
+        }
+    CHECK(wrong == 0);
+  }
+  // 128^3: ~620 blocks, not one per interior row
+  const gpu::InflowLaunch big = gpu::inflow_launch({128, 128, 128});
+  CHECK(big.face_rows == 2 * 126 + 2 * 124);
+  CHECK(big.blocks == big.face_rows + (124 * 124 + 127) / 128);
+  CHECK(gpu::inflow_launch({2, 5, 5}).blocks == 0);
 }
 
 TEST_CASE("float16 storage (GPU mode, emulated): error against float32 reported and bounded", "[gpu-emulated]") {

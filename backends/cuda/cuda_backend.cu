@@ -5,9 +5,11 @@
 // - one thread per interior node, x along threadIdx.x: every direction array is read and
 //   written coalesced (structure of arrays, x fastest);
 // - the 19 values stay in registers; Omega (reduced form) lives in constant memory;
-// - no index table: interior nodes push to all 19 neighbours, boundary inflow is written once;
+// - no index table: interior nodes push to all 19 neighbours, boundary inflow is written once
+//   (and again at each Krylov product, by a launch over the boundary shell only);
 // - several systems (colour channels and base solutions) per launch share the density and
-//   material loads and the launch overhead on small lattices;
+//   material loads and the launch overhead; small lattices split them into groups of threads
+//   so the GPU fills;
 // - convergence sums are reduced on the device in a fixed order (deterministic), and only
 //   seven numbers per system come back per check;
 // - float16 storage with float32 arithmetic as an option.
@@ -50,7 +52,6 @@ struct DeviceTables {
   __device__ const CollisionOp<float>& op(int c, int k) const { return c_ops[c][k]; }
 };
 
-constexpr int kStepBlock = 128;  // inflow_kernel's block
 constexpr int kReduceBlock = 256;
 
 // One thread per interior node and run of systems, as step_launch() lays them out (lb_device.h).
@@ -63,13 +64,11 @@ __global__ void step_kernel(BatchArgs<T> a, int per_group) {
   step_node(a, DeviceTables{}, x, y, z, s_begin, s_end);
 }
 
+// The boundary-fed entries of the nodes inflow_launch() gives each thread (lb_device.h).
 template <typename T>
-__global__ void inflow_kernel(BatchArgs<T> a, T* level, bool zero) {
-  const int x = 1 + static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
-  if (x >= a.d.nx - 1) return;
-  const int y = 1 + static_cast<int>(blockIdx.y), z = 1 + static_cast<int>(blockIdx.z);
-  if (x > 1 && x < a.d.nx - 2 && y > 1 && y < a.d.ny - 2 && z > 1 && z < a.d.nz - 2) return;
-  inflow_node(a, DeviceTables{}, level, zero, x, y, z);
+__global__ void inflow_kernel(BatchArgs<T> a, InflowLaunch l, T* level, bool zero) {
+  inflow_thread_nodes(a.d, l, blockIdx.x, static_cast<int>(threadIdx.x), static_cast<int>(blockDim.x),
+                      [&](int x, int y, int z) { inflow_node(a, DeviceTables{}, level, zero, x, y, z); });
 }
 
 // y = a x + b y over n elements.
@@ -266,10 +265,6 @@ const void*& bound_tables_owner(int device) {
   return owners.at(static_cast<std::size_t>(device));
 }
 
-dim3 interior_grid(const Dims& d, int block) {
-  return dim3(static_cast<unsigned>((d.nx - 2 + block - 1) / block), static_cast<unsigned>(d.ny - 2),
-              static_cast<unsigned>(d.nz - 2));
-}
 // Launches step_kernel over the interior (one step of every system in a).
 template <typename T>
 void launch_step(const BatchArgs<T>& a) {
@@ -515,7 +510,9 @@ class Solver final : public LatticeSolver {
   void inflow(T* level, bool zero, int systems = -1) {
     BatchArgs<T> a = args();
     if (systems >= 0) a.systems = systems;
-    inflow_kernel<T><<<interior_grid(d_, kStepBlock), kStepBlock>>>(a, level, zero);
+    const InflowLaunch l = inflow_launch(d_);
+    if (l.blocks == 0) return;
+    inflow_kernel<T><<<static_cast<unsigned>(l.blocks), kInflowThreads>>>(a, l, level, zero);
     GPU_CHECK(gpuGetLastError());
   }
 

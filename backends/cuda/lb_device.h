@@ -210,6 +210,57 @@ LBL_HOSTDEV inline bool step_thread_node(const Dims& d, int per_group, int syste
   return x >= 1 && x < d.nx - 1 && (OneRow || y < d.ny - 1);
 }
 
+// Only interior nodes next to the boundary layer receive inflow (fed_by_boundary). The inflow
+// launch covers the rows (y, z) with y or z next to the boundary whole, one block per row
+// striding along x, and the other rows' two end nodes (x = 1 and nx - 2), one thread per row:
+// at 128^3 ~620 blocks of 128 threads instead of one per interior row (15876, nearly all idle),
+// which counts because a Krylov solve runs it at every operator product.
+inline constexpr int kInflowThreads = 128;
+struct InflowLaunch {
+  long long face_rows = 0;  // blocks 0 .. face_rows - 1: one whole row each
+  long long end_rows = 0;   // rows needing their ends only, kInflowThreads per block after those
+  long long blocks = 0;
+};
+// How many of the coordinates 1 and n - 2 are distinct interior ones (n - 2 = 1: a single one).
+LBL_HOSTDEV inline int edge_coordinates(int n) { return n - 2 >= 2 ? 2 : (n - 2 == 1 ? 1 : 0); }
+LBL_HOSTDEV inline int middle_coordinates(int n) { return n - 4 > 0 ? n - 4 : 0; }
+inline InflowLaunch inflow_launch(const Dims& d) {
+  InflowLaunch l;
+  if (d.interior_count() == 0) return l;
+  l.face_rows = static_cast<long long>(edge_coordinates(d.nz)) * (d.ny - 2) +
+                static_cast<long long>(middle_coordinates(d.nz)) * edge_coordinates(d.ny);
+  l.end_rows = static_cast<long long>(middle_coordinates(d.ny)) * middle_coordinates(d.nz);
+  l.blocks = l.face_rows + (l.end_rows + kInflowThreads - 1) / kInflowThreads;
+  return l;
+}
+// Calls node(x, y, z) for the nodes thread tx of block b covers (block size `threads`).
+template <typename Node>
+LBL_HOSTDEV inline void inflow_thread_nodes(const Dims& d, const InflowLaunch& l, long long b, int tx, int threads,
+                                            Node&& node) {
+  int y, z;
+  if (b < l.face_rows) {
+    const long long plane_rows = static_cast<long long>(edge_coordinates(d.nz)) * (d.ny - 2);
+    if (b < plane_rows) {  // z = 1 or nz - 2: every row
+      z = b < d.ny - 2 ? 1 : d.nz - 2;
+      y = 1 + static_cast<int>(b % (d.ny - 2));
+    } else {  // a middle plane: rows y = 1 and ny - 2
+      const long long r = b - plane_rows;
+      const int ey = edge_coordinates(d.ny);
+      z = 2 + static_cast<int>(r / ey);
+      y = r % ey == 0 ? 1 : d.ny - 2;
+    }
+    for (int x = 1 + tx; x < d.nx - 1; x += threads) node(x, y, z);
+    return;
+  }
+  const long long t = (b - l.face_rows) * threads + tx;
+  if (t >= l.end_rows) return;
+  const int my = middle_coordinates(d.ny);
+  y = 2 + static_cast<int>(t % my);
+  z = 2 + static_cast<int>(t / my);
+  node(1, y, z);
+  if (d.nx - 2 > 1) node(d.nx - 2, y, z);
+}
+
 // Interior node number n (x fastest) to coordinates.
 LBL_HOSTDEV inline void interior_coords(const Dims& d, long long n, int& x, int& y, int& z) {
   const long long ix = d.nx - 2, iy = d.ny - 2;
