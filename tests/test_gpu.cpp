@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "backends/cuda/cuda_backend.h"
+#include "backends/cuda/lb_device.h"
 #include "lblight/core/relative_gap.h"
 #include "lblight/lattice/sun.h"
 #include "tests/test_support.h"
@@ -45,10 +46,11 @@ const std::vector<ChannelMaterials>& leaf_channels() {
 }  // namespace
 
 TEST_CASE("CUDA matches OpenMP to 1e-5 in float32 (batch of solutions and channels)", "[gpu]") {
-  // 45 wide: 64 x 2 blocks (several-row kernel); 257 wide: the one-row kernel of 128^3, 256^3 and
-  // the plant, two blocks per row
+  // 45 wide: 64 x 2 blocks (several-row kernel), 15 system groups of 1; 257 wide: the one-row
+  // kernel of 128^3, 256^3 and the plant, two blocks per row, 8 groups of 2 (the last of 1)
   const Dims d = GENERATE(Dims{45, 33, 27}, Dims{257, 20, 18});
   INFO("lattice " << d.nx << "x" << d.ny << "x" << d.nz);
+  REQUIRE(gpu::step_launch(d, 15).per_group == (d.nx == 45 ? 1 : 2));
   const LatticeGeometry g = random_lattice(d, 0.95f, 0.1, 5);
   std::vector<SystemSpec> batch;
   for (int sol : {0, 1, 6, 9, 17})
