@@ -289,6 +289,7 @@ TEST_CASE("Small lattices split their systems into groups along the grid's z; la
   }
   CHECK(step_launch_misses({21, 13, 11}, 7) == 0);  // 7 groups of 1
   CHECK(step_launch_misses({34, 20, 9}, 57) == 0);  // 57 groups of 1, several rows per block
+  CHECK(gpu::step_launch({2, 5, 5}, 3).gz == 0);     // no interior: nothing to launch
 }
 
 TEST_CASE("The inflow launch visits every boundary-fed interior node once and no other", "[gpu-emulated]") {

@@ -269,6 +269,7 @@ const void*& bound_tables_owner(int device) {
 template <typename T>
 void launch_step(const BatchArgs<T>& a) {
   const StepLaunch l = step_launch(a.d, a.systems);
+  if (l.gz == 0) return;
   const dim3 grid(static_cast<unsigned>(l.gx), static_cast<unsigned>(l.gy), static_cast<unsigned>(l.gz));
   const dim3 block(static_cast<unsigned>(l.bx), static_cast<unsigned>(l.by));
   if (l.by == 1) step_kernel<T, true><<<grid, block>>>(a, l.per_group);

@@ -179,16 +179,14 @@ inline StepLaunch step_launch(const Dims& d, int systems, long long fill_threads
   l.by = kStepThreads / l.bx;
   l.gx = (row + l.bx - 1) / l.bx;
   l.gy = (d.ny - 2 + l.by - 1) / l.by;
-  const long long planes = d.nz - 2 > 0 ? d.nz - 2 : 1;
-  const long long interior = d.interior_count() > 0 ? static_cast<long long>(d.interior_count()) : 1;
+  if (d.interior_count() == 0 || systems < 1) return l;  // nothing to step: gz = 0
+  const long long planes = d.nz - 2, interior = static_cast<long long>(d.interior_count());
   long long groups = (fill_threads + interior - 1) / interior;
   if (groups > systems) groups = systems;
   if (groups > 65535 / planes) groups = 65535 / planes;  // the grid's z limit
   if (groups < 1) groups = 1;
   l.per_group = static_cast<int>((systems + groups - 1) / groups);
-  if (l.per_group < 1) l.per_group = 1;
   l.groups = static_cast<int>((systems + l.per_group - 1) / l.per_group);  // no empty group
-  if (l.groups < 1) l.groups = 1;
   l.gz = planes * l.groups;
   return l;
 }
@@ -217,8 +215,9 @@ LBL_HOSTDEV inline bool step_thread_node(const Dims& d, int per_group, int syste
 // which counts because a Krylov solve runs it at every operator product.
 inline constexpr int kInflowThreads = 128;
 struct InflowLaunch {
-  long long face_rows = 0;  // blocks 0 .. face_rows - 1: one whole row each
-  long long end_rows = 0;   // rows needing their ends only, kInflowThreads per block after those
+  long long plane_rows = 0;  // blocks 0 .. plane_rows - 1: the rows of planes z = 1 and nz - 2
+  long long face_rows = 0;   // blocks plane_rows .. face_rows - 1: rows y = 1, ny - 2 of the others
+  long long end_rows = 0;    // rows needing their ends only, kInflowThreads per block after those
   long long blocks = 0;
 };
 // How many of the coordinates 1 and n - 2 are distinct interior ones (n - 2 = 1: a single one).
@@ -227,8 +226,8 @@ LBL_HOSTDEV inline int middle_coordinates(int n) { return n - 4 > 0 ? n - 4 : 0;
 inline InflowLaunch inflow_launch(const Dims& d) {
   InflowLaunch l;
   if (d.interior_count() == 0) return l;
-  l.face_rows = static_cast<long long>(edge_coordinates(d.nz)) * (d.ny - 2) +
-                static_cast<long long>(middle_coordinates(d.nz)) * edge_coordinates(d.ny);
+  l.plane_rows = static_cast<long long>(edge_coordinates(d.nz)) * (d.ny - 2);
+  l.face_rows = l.plane_rows + static_cast<long long>(middle_coordinates(d.nz)) * edge_coordinates(d.ny);
   l.end_rows = static_cast<long long>(middle_coordinates(d.ny)) * middle_coordinates(d.nz);
   l.blocks = l.face_rows + (l.end_rows + kInflowThreads - 1) / kInflowThreads;
   return l;
@@ -239,12 +238,11 @@ LBL_HOSTDEV inline void inflow_thread_nodes(const Dims& d, const InflowLaunch& l
                                             Node&& node) {
   int y, z;
   if (b < l.face_rows) {
-    const long long plane_rows = static_cast<long long>(edge_coordinates(d.nz)) * (d.ny - 2);
-    if (b < plane_rows) {  // z = 1 or nz - 2: every row
+    if (b < l.plane_rows) {  // z = 1 or nz - 2: every row
       z = b < d.ny - 2 ? 1 : d.nz - 2;
       y = 1 + static_cast<int>(b % (d.ny - 2));
     } else {  // a middle plane: rows y = 1 and ny - 2
-      const long long r = b - plane_rows;
+      const long long r = b - l.plane_rows;
       const int ey = edge_coordinates(d.ny);
       z = 2 + static_cast<int>(r / ey);
       y = r % ey == 0 ? 1 : d.ny - 2;
