@@ -24,6 +24,7 @@
 #include "lblight/lattice/sun.h"
 #include "lblight/scene/scene.h"
 #include "lblight/scene/validate.h"
+#include "tests/expect_error.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
@@ -767,14 +768,8 @@ TEST_CASE("Sec. 6 edge cases: negative density, rho*sigma_t == 2, wood, backscat
     g.density.assign(27, 0.5f);
     g.material.assign(27, 0);
     g.density[13] = std::numeric_limits<float>::quiet_NaN();
-    try {
-      check_density_values(m, g, scene);
-      FAIL("a NaN density was accepted");
-    } catch (const Error& e) {
-      CHECK(e.category() == ErrorCategory::InvalidInput);
-      CHECK(std::string(e.what()).find("nan") != std::string::npos);
-      CHECK(e.where().voxel == "(1, 1, 1)");
-    }
+    const Error e = expect_invalid_input([&] { check_density_values(m, g, scene); }, "nan");
+    CHECK(e.where().voxel == "(1, 1, 1)");
   }
 }
 

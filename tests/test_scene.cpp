@@ -11,9 +11,11 @@
 #include "lblight/scene/load_model.h"
 #include "lblight/scene/scene.h"
 #include "lblight/solve/plan.h"
+#include "tests/expect_error.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
+using lblight::test::expect_invalid_input;
 
 namespace {
 const char* kMinimal = R"({
@@ -97,15 +99,12 @@ TEST_CASE("Every bad field is named by its JSON path", "[scene]") {
 }
 
 TEST_CASE("Error messages name the value and what is allowed", "[scene]") {
-  try {
-    parse_scene(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": -1.25})"), "x.json");
-    FAIL("expected an error");
-  } catch (const Error& e) {
-    const std::string what = e.what();
-    CHECK(what.find("x.json") != std::string::npos);
-    CHECK(what.find("-1.25") != std::string::npos);
-    CHECK(what.find("-1 <= g <= 1") != std::string::npos);
-  }
+  const Error e = expect_invalid_input(
+      [] { parse_scene(with_model_field(R"("material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": -1.25})"), "x.json"); },
+      "-1 <= g <= 1");
+  const std::string what = e.what();
+  CHECK(what.find("x.json") != std::string::npos);
+  CHECK(what.find("-1.25") != std::string::npos);
 }
 
 TEST_CASE("Solution lists: all, indices and ranges", "[scene]") {
@@ -156,25 +155,12 @@ TEST_CASE("Grid rules: density after scale and rho * sigma_t < 2", "[scene][vali
   // density_scale pushes the procedural cloud's core above 1
   Scene s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
       "resolution": 10, "density_scale": 1.5}, "material": "cloud"}]})", "s.json");
-  try {
-    make_plan(s);
-    FAIL("expected an error");
-  } catch (const Error& e) {
-    CHECK(e.category() == ErrorCategory::InvalidInput);
-    CHECK(std::string(e.what()).find("after density_scale") != std::string::npos);
-    CHECK_FALSE(e.where().voxel.empty());
-  }
+  CHECK_FALSE(expect_invalid_input([&] { make_plan(s); }, "after density_scale").where().voxel.empty());
   s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural", "resolution": 10},
       "material": {"sigma_a": 0.5, "sigma_s": [1.0, 1.6, 1.0], "g": 0}}]})", "s.json");
-  try {
-    make_plan(s);
-    FAIL("expected an error");
-  } catch (const Error& e) {
-    const std::string what = e.what();
-    CHECK(what.find("channel green") != std::string::npos);
-    CHECK(what.find("rho * sigma_t < 2") != std::string::npos);
-    CHECK(e.where().json_path == "/models/0/material");
-  }
+  const Error e = expect_invalid_input([&] { make_plan(s); }, "rho * sigma_t < 2");
+  CHECK(std::string(e.what()).find("channel green") != std::string::npos);
+  CHECK(e.where().json_path == "/models/0/material");
 }
 
 TEST_CASE("Procedural sources are deterministic and in range", "[scene]") {
