@@ -272,25 +272,24 @@ TEST_CASE("compare: identical bakes pass, a different precision fails at toleran
   CHECK(run_cli("compare a f64 --tolerance 1e-4", tmp.path()).exit_code == 0);
 
   CHECK(run_cli("compare a missing", tmp.path()).exit_code == 2);
+  // kTinyScene with `from` replaced by `to`, baked on the CPU into directory `name`
+  const auto bake_variant = [&](const std::string& name, const std::string& from, const std::string& to) {
+    std::string text = kTinyScene;
+    const std::size_t at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    write_text(tmp / (name + ".json"), text.replace(at, from.size(), to));
+    REQUIRE(run_cli("bake " + name + ".json -o " + name + " --backend cpu -q", tmp.path()).exit_code == 0);
+  };
   // another lattice (other resolution) does not match up
-  std::string other = kTinyScene;
-  other.replace(other.find("\"resolution\": 10"), 16, "\"resolution\": 12");
-  write_text(tmp / "other.json", other);
-  REQUIRE(run_cli("bake other.json -o c --backend cpu -q", tmp.path()).exit_code == 0);
-  const CliResult lattice = run_cli("compare a c", tmp.path());
+  bake_variant("other", R"("resolution": 10)", R"("resolution": 12)");
+  const CliResult lattice = run_cli("compare a other", tmp.path());
   CHECK(lattice.exit_code == 2);
   CHECK(lattice.err.find("another lattice") != std::string::npos);
 
   // a bake that differs in the blue channel alone is told apart (every channel is compared)
-  std::string blue = kTinyScene;
-  blue.replace(blue.find("\"material\": \"cloud\""), 19,
-               R"("material": {"sigma_a": 0.01, "sigma_s": [0.79, 0.79, 0.6], "g": 0.5})");
-  std::string grey = kTinyScene;
-  grey.replace(grey.find("\"material\": \"cloud\""), 19, R"("material": {"sigma_a": 0.01, "sigma_s": 0.79, "g": 0.5})");
-  write_text(tmp / "blue.json", blue);
-  write_text(tmp / "grey.json", grey);
-  REQUIRE(run_cli("bake grey.json -o grey --backend cpu -q", tmp.path()).exit_code == 0);
-  REQUIRE(run_cli("bake blue.json -o blue --backend cpu -q", tmp.path()).exit_code == 0);
+  const std::string cloud = R"("material": "cloud")";
+  bake_variant("grey", cloud, R"("material": {"sigma_a": 0.01, "sigma_s": 0.79, "g": 0.5})");
+  bake_variant("blue", cloud, R"("material": {"sigma_a": 0.01, "sigma_s": [0.79, 0.79, 0.6], "g": 0.5})");
   const CliResult channels = run_cli("compare grey blue --tolerance 1e-3", tmp.path());
   INFO(channels.out << channels.err);
   CHECK(channels.exit_code == 1);

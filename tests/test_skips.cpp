@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -372,27 +373,27 @@ TEST_CASE("The summed B00's error estimates are the documented sums over its par
   const Scene s = parse_scene(scene_text(R"({"mode": "base"})", R"({"tolerance": 1e-4})"), "s.json");
   const BakeResult r = bake(s);
   REQUIRE(r.plan.models[0].savings.ambient_from_sum);
-  double l2 = 0, mx = 0;
-  for (int j = 1; j < 19; ++j) {
-    const SolutionResult& p = r.solutions.at(j);
+  // ||B|| over the three channels and B's peak value
+  const auto norm_and_peak = [](const SolutionResult& p) {
     double norm_sq = 0, peak = 0;
     for (const auto& t : p.totals)
       for (float v : t) {
         norm_sq += static_cast<double>(v) * v;
         peak = std::max(peak, static_cast<double>(v));
       }
-    l2 += p.error_estimate * std::sqrt(norm_sq);
+    return std::pair{std::sqrt(norm_sq), peak};
+  };
+  double l2 = 0, mx = 0;
+  for (int j = 1; j < 19; ++j) {
+    const SolutionResult& p = r.solutions.at(j);
+    const auto [norm, peak] = norm_and_peak(p);
+    l2 += p.error_estimate * norm;
     mx += p.error_estimate_max * peak;
   }
-  double norm_sq = 0, peak = 0;
-  for (const auto& t : r.solutions.at(0).totals)
-    for (float v : t) {
-      norm_sq += static_cast<double>(v) * v;
-      peak = std::max(peak, static_cast<double>(v));
-    }
+  const auto [norm, peak] = norm_and_peak(r.solutions.at(0));
   REQUIRE(std::isfinite(mx));
   REQUIRE(mx > 0);
-  CHECK(r.solutions.at(0).error_estimate == Approx(l2 / std::sqrt(norm_sq)).epsilon(1e-4));
+  CHECK(r.solutions.at(0).error_estimate == Approx(l2 / norm).epsilon(1e-4));
   CHECK(r.solutions.at(0).error_estimate_max == Approx(mx / peak).epsilon(1e-4));
 }
 
