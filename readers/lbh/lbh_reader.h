@@ -391,6 +391,7 @@ LBH_HOSTDEV inline SunWeights decompose_direction(double dx, double dy, double d
     }
   }
   // rounding residue (a sun along a lattice direction or face edge) is 0: it needs no solution
+  // (1e-9: kNegligibleSunWeight in lblight/lattice/sun.h; this header includes nothing of lblight)
   for (int k = 0; k < 3; ++k)
     if (best[k] < 1e-9) best[k] = 0.0;
   const double s = best[0] + best[1] + best[2];
