@@ -16,6 +16,7 @@
 #include "lblight/mesh/voxelize.h"
 #include "lblight/scene/load_model.h"
 #include "lblight/scene/mesh_source.h"
+#include "tests/expect_error.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
@@ -518,19 +519,11 @@ TEST_CASE("Voxeliser and model loading stop with Cancelled once the flag is set"
   o.cancel = &cancel;
   CHECK(voxelize(m, c.part_class, o).stats.occupied_nodes > 0);  // an unset flag changes nothing
   cancel = true;
-  const auto category = [](auto&& f) {
-    try {
-      f();
-    } catch (const Error& e) {
-      return e.category();
-    }
-    return ErrorCategory::Internal;
-  };
-  CHECK(category([&] { voxelize(m, c.part_class, o); }) == ErrorCategory::Cancelled);
+  expect_error(ErrorCategory::Cancelled, [&] { voxelize(m, c.part_class, o); });
   MeshSource src;
   src.path = fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj";
   src.resolution = 16;
-  CHECK(category([&] { voxelize_mesh_source(src, 0, {}, 0, &cancel); }) == ErrorCategory::Cancelled);
+  expect_error(ErrorCategory::Cancelled, [&] { voxelize_mesh_source(src, 0, {}, 0, &cancel); });
 }
 
 TEST_CASE("lblight voxelize writes density and brown grids that reopen with OpenVDB", "[mesh][cli]") {
