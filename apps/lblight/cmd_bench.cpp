@@ -226,8 +226,9 @@ int run_bench(const BenchArgs& a) {
 Command add_bench_command(CLI::App& app, const GlobalOptions&) {
   auto a = std::make_shared<BenchArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "bench", "Measure lattice updates per second per channel on a procedural cloud lattice and the fraction of "
-               "the device's copy bandwidth (measured in the same run) that they represent.");
+      "bench", "Measure lattice updates per second per channel on a procedural lattice (a uniform medium unless "
+               "--shape) and the fraction of the device's copy bandwidth (measured in the same run) that they "
+               "represent.");
   cmd->add_option("--backend", a->backend, "auto, cpu or cuda")->check(CLI::IsMember({"auto", "cpu", "cuda"}))->capture_default_str();
   cmd->add_option("--threads", a->threads, "CPU threads (0 = all)")->check(CLI::Range(0, 4096));
   cmd->add_option("--device", a->device, "GPU ordinal")->check(CLI::Range(0, 64));
