@@ -18,6 +18,7 @@
 #include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/io/vdb_stream_writer.h"
+#include "tests/expect_error.h"
 #include "tests/test_support.h"
 
 using namespace lblight;
@@ -275,12 +276,13 @@ TEST_CASE("Only a marker file with lblight's own keys makes a folder an earlier 
     write_text(tmp / name / file, text);
     return tmp / name;
   };
+  const auto refused = [](const fs::path& target, OutputKind kind) {
+    expect_invalid_input([&] { StagedDirectory::check_target(target, kind); }, "refusing to replace it");
+  };
   const fs::path extension = folder_with("ext", "manifest.json", R"({"name": "my-extension", "manifest_version": 3})");
-  CHECK_THROWS_AS(StagedDirectory::check_target(extension, OutputKind::Bake), Error);
-  const fs::path half = folder_with("half", "manifest.json", R"({"lblight_version": "0.1"})");
-  CHECK_THROWS_AS(StagedDirectory::check_target(half, OutputKind::Bake), Error);
-  const fs::path other_report = folder_with("rep", "report.json", R"({"curves": []})");
-  CHECK_THROWS_AS(StagedDirectory::check_target(other_report, OutputKind::Report), Error);
+  refused(extension, OutputKind::Bake);
+  refused(folder_with("half", "manifest.json", R"({"lblight_version": "0.1"})"), OutputKind::Bake);
+  refused(folder_with("rep", "report.json", R"({"curves": []})"), OutputKind::Report);
   // lblight's own markers are accepted
   const fs::path bake = folder_with("bake", "manifest.json", R"({"lblight_version": "0.1", "models": []})");
   CHECK_NOTHROW(StagedDirectory::check_target(bake, OutputKind::Bake));
