@@ -205,8 +205,7 @@ TEST_CASE("NaN and Inf in a density grid are rejected with their voxel", "[cli][
   // Inf rather than NaN: OpenVDB's dense-to-sparse copy treats NaN as background and drops it,
   // so our own writer cannot produce a NaN voxel. Both go through the same isfinite check.
   density[21] = std::numeric_limits<float>::infinity();
-  DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}};
-  write_vdb(tmp / "nan.vdb", frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
+  write_density_vdb(tmp / "nan.vdb", cube_frame(4, 0.1), density);
   write_text(tmp / "bad.json", model_with(R"({"type": "vdb", "path": "nan.vdb"})", R"("cloud")"));
   const CliResult r = run_cli("bake bad.json -o out", tmp.path());
   CHECK(r.exit_code == 2);

@@ -655,8 +655,6 @@ TEST_CASE("Float32 backend at steady state: inflow = outflow + absorbed to 1e-6"
 // a negative density_scale, a NaN token, an out-of-range g in one channel, and a
 // NaN density voxel (OpenVDB's writer cannot store one, so through the library check).
 namespace {
-const std::array<double, 16> kUnit{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-
 // Writes grid.vdb with a 4^3 density grid (and a wood grid marking the upper half).
 void write_grid(const fs::path& file, float fill, float odd_one, bool with_wood) {
   std::vector<float> density(64, fill), wood(64, 0.0f);
@@ -664,7 +662,7 @@ void write_grid(const fs::path& file, float fill, float odd_one, bool with_wood)
   for (std::size_t i = 32; i < 64; ++i) wood[i] = 1.0f;
   std::vector<DenseGridOut> grids{{"density", &density, nullptr, true, {}}};
   if (with_wood) grids.push_back({"wood", &wood, nullptr, false, {}});
-  write_vdb(file, DenseFrame{{4, 4, 4}, {0, 0, 0}, kUnit}, grids, nlohmann::json::object());
+  write_vdb(file, cube_frame(4, 1.0), grids, nlohmann::json::object());
 }
 
 std::string vdb_scene(const std::string& material, const std::string& extra = "") {

@@ -8,6 +8,7 @@
 #include "lblight/lattice/collide.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/lattice/omega.h"
+#include "tests/test_support.h"
 
 using namespace lblight;
 using d3q19::kQ;
@@ -134,12 +135,7 @@ TEST_CASE("Omega entries equal eqs. (8)-(9) worked out by hand at g = 0.5", "[om
   const double r = 1 / std::sqrt(2.0);
   const double norm = (2 * (p(1) + p(-1) + 4 * p(0)) + (4 * p(r) + 4 * p(-r) + 4 * p(0))) / 24;  // eq. (8)
   const OmegaMatrix om = build_omega({sigma_a, sigma_s, g});
-  const auto dir = [](int x, int y, int z) {
-    for (int m = 1; m < kQ; ++m)
-      if (d3q19::cx(m) == x && d3q19::cy(m) == y && d3q19::cz(m) == z) return m;
-    FAIL("no direction " << x << y << z);
-    return -1;
-  };
+  const auto dir = test::lattice_direction;
   const int j = dir(1, 0, 0);
   const auto entry = [&](int i) { return om[static_cast<std::size_t>(i * kQ + j)]; };
   const double sigma_t = sigma_a + sigma_s;

@@ -1,12 +1,9 @@
 // Scene file v1: what parses, and how bad input is named.
 #include <catch2/catch.hpp>
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 
 #include "lblight/core/error.h"
-#include "lblight/io/vdb_io.h"
 #include "lblight/lattice/omega.h"
 #include "lblight/scene/load_model.h"
 #include "lblight/scene/scene.h"
@@ -220,8 +217,7 @@ TEST_CASE("Sec. 6 warning where 1 + rho * Omega_mm < 0, and none where it is not
 TEST_CASE("The density range is checked after density_scale, not before", "[scene][validate]") {
   lblight::test::TempDir tmp;
   std::vector<float> density(4 * 4 * 4, 1.8f);
-  DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}};
-  write_vdb(tmp / "d.vdb", frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
+  lblight::test::write_density_vdb(tmp / "d.vdb", lblight::test::cube_frame(4, 0.1), density);
   const Scene s = parse_scene(R"({"version": 1, "models": [{"name": "v", "density": {"type": "vdb", "path": ")" +
                                   (tmp / "d.vdb").string() + R"(", "density_scale": 0.5}, "material": "cloud"}]})",
                               "s.json");

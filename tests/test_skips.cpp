@@ -292,17 +292,12 @@ TEST_CASE("A solution's error estimate is that of its slowest channel", "[bake][
 }
 
 TEST_CASE("A fixed sun along a lattice direction needs that one base solution", "[skips][sun]") {
-  const auto direction_of = [](int x, int y, int z) {
-    for (int m = 1; m < 19; ++m)
-      if (d3q19::cx(m) == x && d3q19::cy(m) == y && d3q19::cz(m) == z) return m;
-    return -1;
-  };
   const double h = std::sqrt(0.5);
   // toward the sun -> the direction light travels: zenith -> 6 (-z); (1, 0, 1) -> (-1, 0, -1)
   for (auto [toward, want] : {std::pair{Vec3d{0, 0, 1}, 6}, {toward_sun_from_angles(90, 0), 6},
-                              {toward_sun_from_angles(90, 123), 6}, {Vec3d{h, 0, h}, direction_of(-1, 0, -1)},
-                              {toward_sun_from_angles(45, 0), direction_of(-1, 0, -1)},
-                              {toward_sun_from_angles(0, 90), direction_of(0, -1, 0)}}) {
+                              {toward_sun_from_angles(90, 123), 6}, {Vec3d{h, 0, h}, lattice_direction(-1, 0, -1)},
+                              {toward_sun_from_angles(45, 0), lattice_direction(-1, 0, -1)},
+                              {toward_sun_from_angles(0, 90), lattice_direction(0, -1, 0)}}) {
     INFO("toward the sun (" << toward.x << ", " << toward.y << ", " << toward.z << ")");
     SunConstraints c;
     c.fixed_toward_sun = toward;

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 
 #include "backends/openmp/openmp_backend.h"
 #include "lblight/io/bake_output.h"
@@ -181,6 +182,13 @@ SystemSpec system_for(int channel, const std::array<double, 19>& boundary) {
   return s;
 }
 
+int lattice_direction(int x, int y, int z) {
+  for (int m = 1; m < d3q19::kQ; ++m)
+    if (d3q19::cx(m) == x && d3q19::cy(m) == y && d3q19::cz(m) == z) return m;
+  throw std::logic_error("no D3Q19 direction (" + std::to_string(x) + ", " + std::to_string(y) + ", " +
+                         std::to_string(z) + ")");
+}
+
 std::unique_ptr<Backend> cpu_backend(int threads) { return make_openmp_backend(threads); }
 
 BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out_dir, bool write_in_background) {
@@ -281,6 +289,14 @@ std::string read_text(const std::filesystem::path& file) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+DenseFrame cube_frame(int n, double voxel) {
+  return {{n, n, n}, {0, 0, 0}, {voxel, 0, 0, 0, 0, voxel, 0, 0, 0, 0, voxel, 0, 0, 0, 0, 1}};
+}
+
+void write_density_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<float>& density) {
+  write_vdb(file, frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
 }
 
 }  // namespace lblight::test

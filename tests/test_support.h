@@ -10,6 +10,7 @@
 
 #include "lblight/backend/backend.h"
 #include "lblight/core/relative_gap.h"
+#include "lblight/io/vdb_io.h"
 #include "lblight/solve/bake.h"
 #include "lblight/solve/plan.h"
 #include "lblight/lattice/omega.h"
@@ -63,6 +64,10 @@ ChannelMaterials channel(const OpticalParams& medium, bool absorbs,
                          const OpticalParams& wood = {0.1, 0.9, -1.0}, bool wood_absorbs = false);
 SystemSpec system_for(int channel, const std::array<double, 19>& boundary);
 
+// The lattice direction m (1..18) with velocity (x, y, z); throws std::logic_error for any other
+// vector, which fails the calling test.
+int lattice_direction(int x, int y, int z);
+
 // Geometries that break LatticeGeometry's contract, one fault each, with a word the backend's
 // error must contain (see check_geometry in lblight/backend/backend.h).
 struct BrokenGeometry {
@@ -102,6 +107,11 @@ CliResult run_cli(const std::string& args, const std::filesystem::path& cwd = {}
 
 void write_text(const std::filesystem::path& file, const std::string& text);
 std::string read_text(const std::filesystem::path& file);
+
+// n^3 nodes from index (0, 0, 0), cubic voxels `voxel` wide, no rotation or offset.
+DenseFrame cube_frame(int n, double voxel);
+// Writes `density` as the one grid "density" of `file` (lblight's own writer, no file metadata).
+void write_density_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<float>& density);
 
 // Bakes the first model of `scene` on the OpenMP backend through a full BakeOutput into `out_dir`
 // (grids, .lbh when asked, manifest), keeping each solution's result as it was before the

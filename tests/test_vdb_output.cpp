@@ -177,7 +177,7 @@ TEST_CASE("A density grid's rotated anisotropic transform gives the manifest's v
   const double c = std::cos(M_PI / 6), s = std::sin(M_PI / 6);
   const DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {c * 0.1, -s * 0.2, 0, 1, s * 0.1, c * 0.2, 0, 2, 0, 0, 0.3, 3, 0, 0, 0, 1}};
   const std::vector<float> density(frame.dims.count(), 0.5f);
-  write_vdb(tmp / "grid.vdb", frame, {{"density", &density, nullptr, true, {}}}, nlohmann::json::object());
+  write_density_vdb(tmp / "grid.vdb", frame, density);
   const Scene scene = parse_scene(R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb",
       "path": "grid.vdb"}, "material": "cloud"}], "lighting": {"solutions": "1"}, "solver": {"iterations": 2}})",
                                   tmp / "s.json");
@@ -202,7 +202,7 @@ TEST_CASE("A density grid must have background 0", "[io][validate]") {
 TEST_CASE("Wood grid voxels above 0.5 are wood and those at or below are not", "[io]") {
   // docs/scene-format.md: a float wood grid marks wood where its value is > 0.5
   TempDir tmp;
-  const DenseFrame frame{{4, 4, 4}, {0, 0, 0}, {0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0, 0, 1}};
+  const DenseFrame frame = cube_frame(4, 0.1);
   const std::vector<float> density(64, 0.5f);
   std::vector<float> wood(64, 0.0f);
   for (std::size_t i = 0; i < 16; ++i) wood[i] = 0.3f;
