@@ -25,6 +25,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The shipped example plant (wood and leaf parts), shared by the voxeliser tests.
+fs::path bush_obj_path() { return fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj"; }
+
 TriangleMesh parse(const std::string& text) {
   std::istringstream in(text);
   return parse_obj(in, "test.obj");
@@ -482,8 +485,7 @@ TEST_CASE("Voxeliser: non-manifold and open meshes are fine, fill of an open mes
 }
 
 TEST_CASE("Voxeliser: same result on any thread count, padding keeps the transform", "[mesh]") {
-  TempDir tmp;
-  const TriangleMesh m = read_mesh(fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj");
+  const TriangleMesh m = read_mesh(bush_obj_path());
   const Classification c = classify_parts(m, {}, {});
   CHECK(c.unmatched_triangles == 0);
   CHECK(c.wood_triangles > 0);
@@ -511,7 +513,7 @@ TEST_CASE("Voxeliser: same result on any thread count, padding keeps the transfo
 }
 
 TEST_CASE("Voxeliser and model loading stop with Cancelled once the flag is set", "[mesh]") {
-  const TriangleMesh m = read_mesh(fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj");
+  const TriangleMesh m = read_mesh(bush_obj_path());
   const Classification c = classify_parts(m, {}, {});
   std::atomic<bool> cancel{false};
   VoxelizeOptions o;
@@ -521,7 +523,7 @@ TEST_CASE("Voxeliser and model loading stop with Cancelled once the flag is set"
   cancel = true;
   expect_error(ErrorCategory::Cancelled, [&] { voxelize(m, c.part_class, o); });
   MeshSource src;
-  src.path = fs::path(LBLIGHT_SOURCE_DIR) / "configs" / "meshes" / "bush.obj";
+  src.path = bush_obj_path();
   src.resolution = 16;
   expect_error(ErrorCategory::Cancelled, [&] { voxelize_mesh_source(src, 0, {}, 0, &cancel); });
 }
