@@ -33,16 +33,10 @@ TriangleMesh parse(const std::string& text) {
   return parse_obj(in, "test.obj");
 }
 
-// The message of the InvalidInput error `f` throws ("" when it throws nothing).
+// The message of the InvalidInput error `f` must throw, for several checks of its words.
 template <class F>
 std::string invalid_message(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    CHECK(e.category() == ErrorCategory::InvalidInput);
-    return e.what();
-  }
-  return "";
+  return expect_invalid_input(std::forward<F>(f), "").what();
 }
 
 // An axis-aligned box [lo, hi]^3 as 6 outward-facing quads (12 triangles) with material `mtl`.

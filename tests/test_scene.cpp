@@ -20,17 +20,12 @@ const char* kMinimal = R"({
   "models": [{"name": "c", "density": {"type": "procedural", "shape": "cloud", "resolution": 12}, "material": "cloud"}]
 })";
 
-// Parses `text` and returns the error's JSON path ("" when the error names the file only), or
-// "<accepted>" when it parses.
+// Parses `text`, which must fail as input naming scene.json, and returns the error's JSON path
+// ("" when the error names the file only).
 std::string error_path(const std::string& text) {
-  try {
-    parse_scene(text, "scene.json");
-  } catch (const Error& e) {
-    CHECK(e.category() == ErrorCategory::InvalidInput);
-    CHECK(e.where().file == "scene.json");
-    return e.where().json_path;
-  }
-  return "<accepted>";
+  const Error e = expect_invalid_input([&] { parse_scene(text, "scene.json"); }, "");
+  CHECK(e.where().file == "scene.json");
+  return e.where().json_path;
 }
 
 std::string with_model_field(const std::string& field) {
