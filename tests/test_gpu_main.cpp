@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "lblight/backend/registry.h"
+#include "backends/registry.h"
 
 int main(int argc, char** argv) {
   const std::string why = lblight::gpu_unavailable_reason();

@@ -40,8 +40,8 @@ std::array<std::vector<float>, 3> make_field(const Dims& d, unsigned seed, float
   return rgb;
 }
 
-LbhFrame frame_of(const Dims& d) {
-  LbhFrame f;
+DenseFrame frame_of(const Dims& d) {
+  DenseFrame f;
   f.dims = d;
   f.index_min = {-3, 5, 7};
   // scale 0.25, a rotation about z by 90 degrees, a translation
@@ -50,7 +50,7 @@ LbhFrame frame_of(const Dims& d) {
 }
 
 struct Encoded {
-  LbhFrame frame;
+  DenseFrame frame;
   std::vector<LbhEncoded> sols;
   std::array<std::vector<float>, 3> field;
   std::string bytes;
@@ -285,7 +285,7 @@ TEST_CASE("Error bound of one block is attained by a worst-case pattern", "[haar
 TEST_CASE("Encoding does not depend on the thread count", "[haar]") {
   const Dims d{16, 9, 12};
   const auto field = make_field(d, 5);
-  const LbhFrame f = frame_of(d);
+  const DenseFrame f = frame_of(d);
   std::string bytes[3];
   int k = 0;
   for (int threads : {1, 2, 7}) {
@@ -409,7 +409,7 @@ TEST_CASE("Reader sun decomposition matches lblight's", "[reader]") {
 
 TEST_CASE("Relighting blends three directional solutions and the ambient one", "[reader]") {
   const Dims d{10, 8, 7};
-  const LbhFrame f = frame_of(d);
+  const DenseFrame f = frame_of(d);
   std::vector<std::array<std::vector<float>, 3>> fields;
   for (unsigned k = 0; k < 19; ++k) fields.push_back(make_field(d, 100 + k));
   std::vector<LbhEncoded> sols;
@@ -629,7 +629,7 @@ TEST_CASE("Random garbage never opens and never crashes the reader", "[reader]")
 
 TEST_CASE("8-bit details: step edge cases give files the reader accepts", "[haar]") {
   const Dims d{7, 5, 6};
-  const LbhFrame f = frame_of(d);
+  const DenseFrame f = frame_of(d);
   auto encode_field = [&](const std::array<std::vector<float>, 3>& field, LbhSettings settings) {
     LbhEncoded e = encode_lbh_solution(f, {"B01", 1, {1, 0, 0}, &field}, settings, 2);
     lbh::Stream s = open_ok(serialize_lbh(f, {e}));

@@ -10,7 +10,7 @@
 
 #include "lblight/compress/lbh_writer.h"
 #include "lblight/compress/vdb_compress.h"
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 #include "lblight/io/vdb_io.h"
 #include "readers/lbh/lbh_reader.h"
 #include "tests/expect_error.h"
@@ -47,7 +47,7 @@ std::vector<std::pair<std::string, std::string>> seed_streams() {
   } cases[] = {{"tiny_lossless.lbh", {2, 3, 4}, 1, 0.0}, {"two_solutions.lbh", {7, 5, 4}, 2, 0.05},
                {"single_node.lbh", {1, 1, 1}, 1, 0.0}, {"relit.lbh", {4, 4, 5}, 4, 0.02}};
   for (const auto& c : cases) {
-    LbhFrame f;
+    DenseFrame f;
     f.dims = c.d;
     f.index_min = {-1, 0, 2};
     f.index_to_world = {0.5, 0, 0, 1, 0, 0.5, 0, 2, 0, 0, 0.5, 3, 0, 0, 0, 1};

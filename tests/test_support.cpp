@@ -11,7 +11,7 @@
 #include <stdexcept>
 
 #include "backends/openmp/openmp_backend.h"
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 #include "lblight/lattice/d3q19.h"
 
 namespace lblight::test {

@@ -8,7 +8,7 @@
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/scene/load_model.h"
 #include "tests/expect_error.h"

@@ -12,7 +12,7 @@
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 #include "lblight/solve/bake.h"
 
 namespace lblight::cli {

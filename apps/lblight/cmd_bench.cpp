@@ -10,7 +10,7 @@
 
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
-#include "lblight/backend/registry.h"
+#include "backends/registry.h"
 #include "lblight/core/error.h"
 #include "lblight/core/relative_gap.h"
 #include "lblight/lattice/sun.h"

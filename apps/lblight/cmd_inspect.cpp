@@ -9,7 +9,7 @@
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 #include "lblight/io/vdb_io.h"
 #include "readers/lbh/lbh_reader.h"
 

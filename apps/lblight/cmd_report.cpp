@@ -10,7 +10,7 @@
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
-#include "lblight/backend/registry.h"
+#include "backends/registry.h"
 #include "lblight/core/error.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/io/svg_plot.h"

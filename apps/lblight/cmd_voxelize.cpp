@@ -80,7 +80,7 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
                          {"lblight_brown_nodes", st.brown_nodes},
                          {"lblight_fine_occupied", st.fine_occupied},
                          {"lblight_voxelize_seconds", st.seconds}};
-  DenseFrame frame{g.dims, g.index_min, g.index_to_world};
+  const DenseFrame frame = g.frame();
   nlohmann::json dmeta = frame_box;
   dmeta["lblight_meaning"] = "fraction of the node's supersample^3 fine cells touched by the mesh";
   nlohmann::json bmeta = frame_box;

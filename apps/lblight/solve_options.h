@@ -4,7 +4,7 @@
 #include <memory>
 #include <string>
 
-#include "lblight/backend/registry.h"
+#include "backends/registry.h"
 #include "lblight/solve/plan.h"
 
 namespace CLI {

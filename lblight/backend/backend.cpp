@@ -7,15 +7,6 @@
 
 namespace lblight {
 
-const char* to_string(Precision p) {
-  switch (p) {
-    case Precision::Float32: return "float32";
-    case Precision::Float64: return "float64";
-    case Precision::Float16: return "float16";
-  }
-  return "?";
-}
-
 std::string supported_precisions(const Backend& backend) {
   std::string out;
   for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})

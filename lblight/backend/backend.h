@@ -9,16 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "lblight/lattice/lattice.h"
+#include "lblight/core/precision.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/lattice/omega.h"
 
 namespace lblight {
-
-// Storage precision of the lattice state. Arithmetic is float32 for Float16 storage.
-enum class Precision { Float32, Float64, Float16 };
-const char* to_string(Precision p);
-
-inline constexpr int kMaxMaterials = 2;  // medium (leaf) and wood
 
 // What stays fixed while a lattice is solved: its shape, medium density and material per node.
 // The boundary layer (spec sec. 4) must have density 0.
@@ -146,7 +141,6 @@ std::string supported_precisions(const Backend& backend);
 
 // Bytes one lattice update of one system moves at minimum: 19 values in and out, plus the
 // density and material of the node.
-inline double bytes_per_value(Precision p) { return p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0); }
 inline double bytes_per_update(Precision p) { return 2.0 * 19.0 * bytes_per_value(p) + 4.0 + 1.0; }
 
 }  // namespace lblight

@@ -89,7 +89,7 @@ std::uint64_t align64(std::uint64_t v) { return (v + 63) / 64 * 64; }
 
 }  // namespace
 
-LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhSettings& threshold,
+LbhEncoded encode_lbh_solution(const DenseFrame& frame, const LbhSolutionIn& in, const LbhSettings& threshold,
                                int threads) {
   const auto t0 = std::chrono::steady_clock::now();
   const Dims& d = frame.dims;
@@ -256,7 +256,7 @@ LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, c
   return out;
 }
 
-std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& sols) {
+std::string serialize_lbh(const DenseFrame& frame, const std::vector<LbhEncoded>& sols) {
   if (sols.empty() || sols.size() > lbh::kMaxSolutions)
     throw Error(ErrorCategory::Internal, "an .lbh file holds 1.." + std::to_string(lbh::kMaxSolutions) + " solutions");
   const std::uint64_t table_end = lbh::kHeaderBytes + sols.size() * lbh::kEntryBytes;
@@ -335,7 +335,7 @@ std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& 
   return s;
 }
 
-void write_lbh(const std::filesystem::path& file, const LbhFrame& frame, const std::vector<LbhEncoded>& solutions) {
+void write_lbh(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<LbhEncoded>& solutions) {
   write_file_atomically(file, serialize_lbh(frame, solutions));
 }
 

@@ -12,19 +12,12 @@
 #include <nlohmann/json.hpp>
 
 #include "lblight/compress/lbh_settings.h"
-#include "lblight/lattice/lattice.h"
+#include "lblight/lattice/dense_grid.h"
 #include "readers/lbh/lbh_reader.h"
 
 namespace lblight {
 
-
-// The lattice every solution of one file shares: node (i, j, k) sits at index coordinate
-// index_min + (i, j, k); index_to_world is row-major and acts on (i, j, k, 1).
-struct LbhFrame {
-  Dims dims;
-  std::array<int, 3> index_min{};
-  std::array<double, 16> index_to_world{};
-};
+// Every solution of one file shares one lattice, a DenseFrame (lattice/dense_grid.h).
 
 struct LbhSolutionIn {
   std::string name;                       // grid name, at most 15 ASCII characters ("B05", "light")
@@ -68,14 +61,14 @@ struct LbhEncoded {
 // Encodes one solution with `threads` threads (0 = all cores). Throws Error(InvalidInput) on
 // non-finite values or a negative/non-finite threshold. The result does not depend on the
 // thread count.
-LbhEncoded encode_lbh_solution(const LbhFrame& frame, const LbhSolutionIn& in, const LbhSettings& threshold,
+LbhEncoded encode_lbh_solution(const DenseFrame& frame, const LbhSolutionIn& in, const LbhSettings& threshold,
                                int threads = 0);
 
 // The file bytes (docs/lbh-format.md) for the given solutions, in order.
-std::string serialize_lbh(const LbhFrame& frame, const std::vector<LbhEncoded>& solutions);
+std::string serialize_lbh(const DenseFrame& frame, const std::vector<LbhEncoded>& solutions);
 
 // Writes serialize_lbh() to `file` through a temporary name and a rename.
-void write_lbh(const std::filesystem::path& file, const LbhFrame& frame, const std::vector<LbhEncoded>& solutions);
+void write_lbh(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<LbhEncoded>& solutions);
 
 // Manifest entry of one compressed solution ("compression" in manifest.json).
 nlohmann::json lbh_stats_json(const LbhEncoded& e, const std::string& file_name);

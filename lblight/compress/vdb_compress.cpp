@@ -37,10 +37,9 @@ LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSetting
     const DenseGridIn g = read_vdb_grid_dense(file, names[i]);
     if (g.type != "vec3s") throw_invalid("grid '" + names[i] + "' is not a Vec3f grid", where);
     if (names[i].size() > 15) throw_invalid("grid name '" + names[i] + "' is longer than 15 characters", where);
-    const LbhFrame frame{g.frame.dims, g.frame.index_min, g.frame.index_to_world};
+    const DenseFrame& frame = g.frame;
     if (i == 0) out.frame = frame;
-    else if (!(frame.dims == out.frame.dims) || frame.index_min != out.frame.index_min ||
-             frame.index_to_world != out.frame.index_to_world)
+    else if (!(frame == out.frame))
       throw_invalid("grid '" + names[i] + "' does not share the lattice (dims, index box, transform) of grid '" +
                         names[0] + "'; one .lbh holds solutions on one lattice",
                     where);

@@ -11,7 +11,7 @@
 namespace lblight {
 
 struct LbhFileContents {
-  LbhFrame frame;
+  DenseFrame frame;
   std::vector<LbhEncoded> solutions;
 };
 

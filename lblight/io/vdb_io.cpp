@@ -162,19 +162,20 @@ nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
 
 }  // namespace
 
-ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
-  auto base = open_grid(src.path, src.grid, where);
+ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string& density_grid,
+                            const std::string& wood_grid, const Location& where) {
+  auto base = open_grid(file, density_grid, where);
   auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
   if (!grid)
-    throw_invalid("grid '" + src.grid + "' in " + src.path.string() + " is of type " + base->valueType() +
+    throw_invalid("grid '" + density_grid + "' in " + file.string() + " is of type " + base->valueType() +
                       "; allowed: a float grid",
                   where);
   if (grid->background() != 0.0f)
-    throw_invalid("grid '" + src.grid + "' in " + src.path.string() + " has background " +
+    throw_invalid("grid '" + density_grid + "' in " + file.string() + " has background " +
                       std::to_string(grid->background()) + "; allowed: background 0 (empty space)",
                   where);
   const openvdb::CoordBBox bbox = grid->evalActiveVoxelBoundingBox();
-  if (bbox.empty()) throw_invalid("grid '" + src.grid + "' in " + src.path.string() + " has no active voxels", where);
+  if (bbox.empty()) throw_invalid("grid '" + density_grid + "' in " + file.string() + " has no active voxels", where);
   ModelGrid g;
   const openvdb::Coord dim = bbox.dim();
   g.dims = {dim.x(), dim.y(), dim.z()};
@@ -182,20 +183,20 @@ ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
   const std::size_t avail = host_available_memory_bytes();
   if (avail > 0 && bytes > 0.5 * static_cast<double>(avail))
     throw Error(ErrorCategory::Unavailable,
-                "grid '" + src.grid + "' spans " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
+                "grid '" + density_grid + "' spans " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
                     std::to_string(g.dims.nz) + " voxels, too large for this machine's memory",
                 where);
   g.index_min = {bbox.min().x(), bbox.min().y(), bbox.min().z()};
-  g.index_to_world = from_vdb_transform(grid->transform(), "grid '" + src.grid + "'", where);
+  g.index_to_world = from_vdb_transform(grid->transform(), "grid '" + density_grid + "'", where);
   g.density.assign(g.dims.count(), 0.0f);
   g.material.assign(g.dims.count(), kMaterialMedium);
   openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(bbox, g.density.data());
   openvdb::tools::copyToDense(*grid, dense);
 
-  if (!src.wood_grid.empty()) {
-    auto wbase = open_grid(src.path, src.wood_grid, where);
+  if (!wood_grid.empty()) {
+    auto wbase = open_grid(file, wood_grid, where);
     if (wbase->transform() != grid->transform())
-      throw_invalid("wood grid '" + src.wood_grid + "' does not share the transform of density grid '" + src.grid + "'",
+      throw_invalid("wood grid '" + wood_grid + "' does not share the transform of density grid '" + density_grid + "'",
                     where);
     std::vector<float> wood(g.dims.count(), 0.0f);
     openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> wdense(bbox, wood.data());
@@ -212,14 +213,14 @@ ModelGrid read_vdb_density(const VdbSource& src, const Location& where) {
           wood[g.dims.index(c.x() - bbox.min().x(), c.y() - bbox.min().y(), c.z() - bbox.min().z())] = 1.0f;
       }
     } else {
-      throw_invalid("wood grid '" + src.wood_grid + "' is of type " + wbase->valueType() +
+      throw_invalid("wood grid '" + wood_grid + "' is of type " + wbase->valueType() +
                         "; allowed: float, int32 or bool",
                     where);
     }
     for (std::size_t i = 0; i < wood.size(); ++i)
       if (wood[i] > 0.5f) g.material[i] = kMaterialWood;
   }
-  g.description = "grid '" + src.grid + "' of " + src.path.string();
+  g.description = "grid '" + density_grid + "' of " + file.string();
   return g;
 }
 

@@ -11,14 +11,15 @@
 #include <nlohmann/json.hpp>
 
 #include "lblight/core/error.h"
-#include "lblight/scene/model_grid.h"
-#include "lblight/scene/scene.h"
+#include "lblight/lattice/dense_grid.h"
 
 namespace lblight {
 
-// Reads a float density grid (and optional wood grid) into a dense ModelGrid over the
-// density grid's active bounding box. Throws Error(InvalidInput) naming file and grid.
-ModelGrid read_vdb_density(const VdbSource& source, const Location& where);
+// Reads the float grid `density_grid` of `file` (and the optional `wood_grid`: voxels > 0.5 are
+// wood) into a dense ModelGrid over the density grid's active bounding box. Throws
+// Error(InvalidInput) naming file and grid.
+ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string& density_grid,
+                           const std::string& wood_grid, const Location& where);
 
 // One grid to write: a float grid (scalar) or a Vec3f grid (rgb), over a dense lattice.
 struct DenseGridOut {
@@ -27,12 +28,6 @@ struct DenseGridOut {
   const std::array<std::vector<float>, 3>* rgb = nullptr;
   bool fog_volume = false;                      // GRID_FOG_VOLUME class (density)
   nlohmann::json metadata = nlohmann::json::object();  // int, float, bool, string, [3 ints] values
-};
-
-struct DenseFrame {
-  Dims dims;                                    // lattice dims
-  std::array<int, 3> index_min{};               // index coordinate of node (0, 0, 0)
-  std::array<double, 16> index_to_world{};      // row-major, acts on (i, j, k, 1)
 };
 
 // Writes the grids to `file` (which should be a staging path; see output_dir.h).

@@ -13,7 +13,7 @@
 #include "lblight/core/error.h"
 #include "lblight/mesh/classify.h"
 #include "lblight/mesh/triangle_mesh.h"
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 
 namespace lblight {
 

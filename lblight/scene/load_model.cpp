@@ -12,7 +12,11 @@ ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const std:
   ModelGrid g;
   switch (model.density.type) {
     case SourceType::Procedural: g = make_procedural(model.density.procedural); break;
-    case SourceType::Vdb: g = read_vdb_density(model.density.vdb, {scene.file.string(), model.density.json_path, {}}); break;
+    case SourceType::Vdb: {
+      const VdbSource& v = model.density.vdb;
+      g = read_vdb_density(v.path, v.grid, v.wood_grid, {scene.file.string(), model.density.json_path, {}});
+      break;
+    }
     case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}, cancel);
       break;
   }

@@ -2,7 +2,7 @@
 
 #include <atomic>
 
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 
 namespace lblight {

@@ -5,7 +5,7 @@
 #include "lblight/core/error.h"
 #include "lblight/mesh/classify.h"
 #include "lblight/mesh/voxelize.h"
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 
 namespace lblight {

@@ -2,7 +2,7 @@
 // run with no data files.
 #pragma once
 
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 
 namespace lblight {

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "lblight/backend/backend.h"
 #include "lblight/compress/lbh_settings.h"
 #include "lblight/core/error.h"
+#include "lblight/core/precision.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/scene/material.h"

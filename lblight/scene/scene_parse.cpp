@@ -7,7 +7,7 @@
 
 #include "lblight/core/hash.h"
 #include "lblight/scene/json_reader.h"
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 
 namespace lblight {

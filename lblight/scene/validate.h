@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 
 namespace lblight {

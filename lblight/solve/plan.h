@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "lblight/backend/backend.h"
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 #include "lblight/scene/validate.h"
 

@@ -102,8 +102,7 @@ void nano_channels(const Solution& s, float tol, std::size_t& bytes, ErrStats& e
 
 LbhEncoded haar(const Solution& s, double t_abs, LbhCoefficients coefficients = LbhCoefficients::Auto) {
   LbhSolutionIn in{s.name, -1, {0, 0, 0}, &s.grid.values};
-  const LbhFrame f{s.grid.frame.dims, s.grid.frame.index_min, s.grid.frame.index_to_world};
-  return encode_lbh_solution(f, in, {t_abs, false, coefficients}, 0);
+  return encode_lbh_solution(s.grid.frame, in, {t_abs, false, coefficients}, 0);
 }
 
 // The smallest stream whose max node error stays <= target: per coefficient encoding, the largest

@@ -22,7 +22,7 @@
 
 #include "backends/cuda/lb_device.h"
 #include "lblight/core/error.h"
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/solve/bake.h"

@@ -1,4 +1,4 @@
-#include "lblight/backend/registry.h"
+#include "backends/registry.h"
 
 #include <spdlog/spdlog.h>
 
@@ -10,14 +10,6 @@
 #endif
 
 namespace lblight {
-
-std::vector<std::string> compiled_backends() {
-#if LBLIGHT_WITH_CUDA
-  return {"cpu", "cuda"};
-#else
-  return {"cpu"};
-#endif
-}
 
 std::string gpu_unavailable_reason() {
 #if LBLIGHT_WITH_CUDA

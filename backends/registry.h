@@ -1,4 +1,5 @@
-// The one place that picks a backend by name.
+// The one place that picks a backend by name. It sits with the backends, above the library:
+// lblight/ only knows the interface (lblight/backend/backend.h), never a backend.
 #pragma once
 
 #include <memory>
@@ -14,9 +15,6 @@ struct BackendRequest {
   int threads = 0;            // CPU threads; 0 = all cores (or OMP_NUM_THREADS)
   int device = 0;             // GPU ordinal
 };
-
-// Backends compiled into this build, whether or not their device is present.
-std::vector<std::string> compiled_backends();
 
 // Why the CUDA backend cannot run here ("" when it can).
 std::string gpu_unavailable_reason();

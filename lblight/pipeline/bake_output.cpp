@@ -1,4 +1,4 @@
-#include "lblight/io/bake_output.h"
+#include "lblight/pipeline/bake_output.h"
 
 #include <algorithm>
 #include <chrono>
@@ -93,7 +93,7 @@ nlohmann::json lattice_box_json(const ModelPlan& mp) {
   return {{"lblight_lattice_min", mp.lattice_index_min}, {"lblight_lattice_dims", {d.nx, d.ny, d.nz}}};
 }
 DenseFrame dense_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
-LbhFrame lbh_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
+DenseFrame lbh_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 constexpr int kBackgroundParallelGrids = 4;
 double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -1,5 +1,6 @@
-// A model's density grid in memory: what every density source produces and the lattice is
-// built from.
+// Dense grids over a box of index space: the frame every density source, lattice and output file
+// shares, and a model's density grid, which every density source produces and the lattice is
+// built from. Plain values, so the mesh, io, scene and solve layers can all pass them around.
 #pragma once
 
 #include <array>
@@ -11,23 +12,36 @@
 
 namespace lblight {
 
+// Material index per node. A lattice holds at most kMaxMaterials of them.
 inline constexpr std::uint8_t kMaterialMedium = 0;  // cloud medium, plastic, or leaf ("green")
 inline constexpr std::uint8_t kMaterialWood = 1;    // wood ("brown")
+inline constexpr int kMaxMaterials = 2;
 
 // Smallest node edge (world units) an output can have: OpenVDB refuses transforms whose scale
 // is below ~1e-5 ("nearly singular"), which would fail only when the .vdb is written.
 inline constexpr double kMinNodeSize = 2e-5;
 
+// Where a dense array of nodes sits: node (i, j, k) is index coordinate index_min + (i, j, k);
+// index_to_world is row-major 4x4 acting on (i, j, k, 1), as OpenVDB's transform does (the world
+// position of the centre of voxel (i, j, k)).
+struct DenseFrame {
+  Dims dims;
+  std::array<int, 3> index_min{};
+  std::array<double, 16> index_to_world{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  bool operator==(const DenseFrame& o) const {
+    return dims == o.dims && index_min == o.index_min && index_to_world == o.index_to_world;
+  }
+};
+
 struct ModelGrid {
   Dims dims;                               // nodes of the density grid (no margin)
   std::array<int, 3> index_min{0, 0, 0};   // index-space coordinate of node (0, 0, 0)
-  // Index to world, row-major 4x4 acting on (i, j, k, 1) as OpenVDB's transform does: the
-  // world position of the centre of voxel (i, j, k).
-  std::array<double, 16> index_to_world{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  std::array<double, 16> index_to_world{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};  // as DenseFrame's
   std::vector<float> density;              // dims.count(), after density_scale
   std::vector<std::uint8_t> material;      // dims.count(): kMaterialMedium or kMaterialWood
   std::string description;                 // where it came from, for plans and manifests
 
+  DenseFrame frame() const { return {dims, index_min, index_to_world}; }
   std::size_t wood_nodes() const;
   std::size_t occupied_nodes() const;
   // Edge length of a voxel along each index axis in world units.

@@ -1,4 +1,4 @@
-#include "lblight/scene/model_grid.h"
+#include "lblight/lattice/dense_grid.h"
 
 #include <cmath>
 

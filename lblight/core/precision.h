@@ -1,0 +1,23 @@
+// Storage precision of lattice state: one value type that the scene, the plan, the backends and
+// the output all name, so it lives below all of them.
+#pragma once
+
+namespace lblight {
+
+// How lattice state is stored. Arithmetic is float32 for Float16 storage.
+enum class Precision { Float32, Float64, Float16 };
+
+inline const char* to_string(Precision p) {
+  switch (p) {
+    case Precision::Float32: return "float32";
+    case Precision::Float64: return "float64";
+    case Precision::Float16: return "float16";
+  }
+  return "?";
+}
+
+inline double bytes_per_value(Precision p) {
+  return p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0);
+}
+
+}  // namespace lblight
