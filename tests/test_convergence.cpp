@@ -126,12 +126,12 @@ TEST_CASE("BiCGStab reaches the plain iteration's fixed point", "[krylov]") {
     const auto plain = solve_totals_f64(*backend, g, {ch}, system_for(0, base_boundary(3)), 6000);
     auto solver = backend->create(g, {ch}, {Precision::Float64, 1});
     solver->reset({system_for(0, base_boundary(3))});
-    const KrylovResult kr = bicgstab(*solver, 1e-12, 5000);
+    const KrylovResult kr = bicgstab(krylov_of(*solver), 1e-12, 5000);
     INFO("absorbs " << absorbs << ": " << kr.iterations << " iterations, " << kr.steps << " steps");
     CHECK(kr.reached);
     CHECK(kr.steps < 600);
     std::vector<double> f;
-    solver->read_state(0, f);
+    state_of(*solver).read_state(0, f);
     const std::size_t n = g.dims.count();
     std::vector<double> totals(n, 0.0);
     for (int m = 0; m < 19; ++m)
@@ -148,7 +148,7 @@ TEST_CASE("BiCGStab in float32 reaches 1e-4 on a dense cube in a fraction of the
   const auto truth = solve_totals_f64(*backend, g, {ch}, system_for(0, base_boundary(6)), 8000);
   auto solver = backend->create(g, {ch}, {Precision::Float32, 1});
   solver->reset({system_for(0, base_boundary(6))});
-  const KrylovResult kr = bicgstab(*solver, 1e-5, 2000);
+  const KrylovResult kr = bicgstab(krylov_of(*solver), 1e-5, 2000);
   std::vector<Residual> r;
   solver->measure(r);
   std::vector<float> got(g.dims.count());

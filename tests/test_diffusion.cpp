@@ -43,13 +43,13 @@ double measured_diffusion(const OpticalParams& p, double rho = 1.0, bool absorb 
   const double rest = absorb ? 0.0 : p.sigma_a;
   f[centre] = rest / (1.0 + rest);
   for (int m = 1; m < 19; ++m) f[m * d.count() + centre] = d3q19::weight(m) / (1.0 + rest);
-  solver->write_state(0, f);
+  state_of(*solver).write_state(0, f);
   const int t1 = 20, t2 = 60;
   solver->step(t1);
-  solver->read_state(0, f);
+  state_of(*solver).read_state(0, f);
   const double m1 = second_moment(f, d, c);
   solver->step(t2 - t1);
-  solver->read_state(0, f);
+  state_of(*solver).read_state(0, f);
   const double m2 = second_moment(f, d, c);
   return (m2 - m1) / (6.0 * (t2 - t1));
 }

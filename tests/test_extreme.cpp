@@ -378,7 +378,7 @@ TEST_CASE("Density 1e-7: totals and the medium's own contribution (f_0) match th
       std::vector<float> t(d.count());
       solver->read_totals(0, t.data());
       std::vector<double> f;
-      solver->read_state(0, f);
+      state_of(*solver).read_state(0, f);
       std::vector<double> want_f0, got_f0;  // interior nodes (boundary f_0 is a boundary value)
       for (int z = 1; z < d.nz - 1; ++z)
         for (int y = 1; y < d.ny - 1; ++y)
@@ -440,7 +440,7 @@ TEST_CASE("CPU steps flush subnormals to 0, leave the caller's FP mode alone, an
 #endif
       // computed entries only: boundary values and the interior entries they feed are stored as given
       std::vector<double> f;
-      solver->read_state(0, f);
+      state_of(*solver).read_state(0, f);
       std::size_t subnormal = 0, computed = 0;
       for (int z = 1; z < d.nz - 1; ++z)
         for (int y = 1; y < d.ny - 1; ++y)
@@ -569,7 +569,7 @@ TEST_CASE("100k steps on 8^3: float32 stays within 1e-5 of float64 (no drift)", 
       REQUIRE(res[0].finite);
       f32->read_totals(0, t32.data());
       std::vector<double> s;
-      f64->read_state(0, s);
+      state_of(*f64).read_state(0, s);
       std::vector<double> t64(g.dims.count(), 0.0);
       for (int m = 0; m < 19; ++m)
         for (std::size_t i = 0; i < t64.size(); ++i) t64[i] += s[m * t64.size() + i];
@@ -635,7 +635,7 @@ TEST_CASE("Float32 backend at steady state: inflow = outflow + absorbed to 1e-6"
       solver->step(1);
       solver->measure(res);
       std::vector<double> f;
-      solver->read_state(0, f);
+      state_of(*solver).read_state(0, f);
       const StepBalance b = step_balance(g, omegas(ch), absorbs(ch), f);
       const double imbalance = std::fabs(b.inflow - b.outflow - b.absorbed) / b.inflow;
       const double change = std::sqrt(res[0].diff_sq / res[0].total_sq);

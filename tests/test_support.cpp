@@ -216,6 +216,16 @@ BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out
   return b;
 }
 
+StateAccess& state_of(LatticeSolver& solver) {
+  if (StateAccess* s = solver.state_access()) return *s;
+  throw std::logic_error("this solver offers no state access");
+}
+
+KrylovVectors& krylov_of(LatticeSolver& solver) {
+  if (KrylovVectors* v = solver.krylov_vectors()) return *v;
+  throw std::logic_error("this solver offers no Krylov vectors");
+}
+
 std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
                                 const SystemSpec& sys, int steps, Precision p) {
   SolverOptions so;
@@ -240,7 +250,7 @@ std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeomet
   solver->reset({sys});
   solver->step(steps);
   std::vector<double> f;
-  solver->read_state(0, f);
+  state_of(*solver).read_state(0, f);
   const std::size_t n = g.dims.count();
   std::vector<double> t(n, 0.0);
   for (int m = 0; m < kQ; ++m)

@@ -78,6 +78,11 @@ std::vector<BrokenGeometry> broken_geometries();
 
 std::unique_ptr<Backend> cpu_backend(int threads = 0);
 
+// A solver's raw state and Krylov parts (backend.h); std::logic_error, failing the test, where
+// the solver does not offer them.
+StateAccess& state_of(LatticeSolver& solver);
+KrylovVectors& krylov_of(LatticeSolver& solver);
+
 // Runs `steps` steps and returns the totals of one system (after a measure()).
 std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
                                 const SystemSpec& sys, int steps, Precision p = Precision::Float32);

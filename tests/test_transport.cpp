@@ -138,10 +138,10 @@ TEST_CASE("Mass is conserved away from the boundary and lost only through it", "
   std::vector<double> f(19 * d.count(), 0.0);
   const std::size_t centre = d.index(10, 10, 10);
   for (int m = 0; m < 19; ++m) f[m * d.count() + centre] = 1.0 + m;  // arbitrary, unbalanced pulse
-  solver->write_state(0, f);
+  state_of(*solver).write_state(0, f);
   auto mass = [&] {
     std::vector<double> s;
-    solver->read_state(0, s);
+    state_of(*solver).read_state(0, s);
     double t = 0;
     for (double v : s) t += v;
     return t;
@@ -208,8 +208,8 @@ TEST_CASE("measure() reports the f_0 reservoir deficit of the nodes that keep f_
     solver->reset({system_for(0, std::array<double, 19>{})});
     std::vector<double> f(19 * d.count());
     for (std::size_t i = 0; i < f.size(); ++i) f[i] = 0.1 + 0.01 * static_cast<double>((i * 7919) % 101);
-    solver->write_state(0, f);
-    solver->read_state(0, f);  // as the backend holds it (entries fed by the boundary included)
+    state_of(*solver).write_state(0, f);
+    state_of(*solver).read_state(0, f);  // as the backend holds it (entries fed by the boundary included)
     double want_sq = 0, want_max = 0;
     int counted = 0;
     for (int z = 1; z < d.nz - 1; ++z)

@@ -278,7 +278,7 @@ void launch_step(const BatchArgs<T>& a) {
 }
 
 template <typename T>
-class Solver final : public LatticeSolver {
+class Solver final : public LatticeSolver, public KrylovVectors, public StateAccess {
  public:
   Solver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity)
       : d_(g.dims), capacity_(capacity) {
@@ -377,6 +377,9 @@ class Solver final : public LatticeSolver {
     GPU_CHECK(gpuMemcpy(out, totals_.get() + static_cast<std::size_t>(system) * count_, count_ * sizeof(float),
                         gpuMemcpyDeviceToHost));
   }
+
+  KrylovVectors* krylov_vectors() override { return this; }
+  StateAccess* state_access() override { return this; }
 
   void read_state(int system, std::vector<double>& f) const override {
     use_device();

@@ -138,7 +138,7 @@ std::size_t last_level_cache_bytes() {
 }
 
 template <typename Real>
-class CpuLatticeSolver final : public LatticeSolver {
+class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess {
   // One SIMD chunk = one cache line of one direction array.
   static constexpr int kLine = 64 / static_cast<int>(sizeof(Real));
 
@@ -273,6 +273,9 @@ class CpuLatticeSolver final : public LatticeSolver {
     const Slot& slot = slots_.at(static_cast<std::size_t>(system));
     for (std::size_t i = 0; i < n_; ++i) out[i] = static_cast<float>(slot.totals[i]);
   }
+
+  KrylovVectors* krylov_vectors() override { return this; }
+  StateAccess* state_access() override { return this; }
 
   void read_state(int system, std::vector<double>& f) const override {
     const Slot& slot = slots_.at(static_cast<std::size_t>(system));

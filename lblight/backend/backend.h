@@ -74,6 +74,13 @@ struct SolverOptions {
   bool flush_denormals = true;
 };
 
+// A solver has up to three parts, one per client (docs/architecture.md, "The backend seam"):
+//   LatticeSolver   batch stepping, what a bake runs: every backend has it;
+//   KrylovVectors   the vector operations of a Krylov solve (solve/krylov.h), where offered;
+//   StateAccess     raw state for tests and diagnostics, where offered.
+class KrylovVectors;
+class StateAccess;
+
 // A lattice resident on a backend, able to run a batch of systems side by side.
 class LatticeSolver {
  public:
@@ -88,18 +95,20 @@ class LatticeSolver {
   virtual void measure(std::vector<Residual>& out) = 0;
   // Totals (dims.count() values) as of the last measure().
   virtual void read_totals(int system, float* out) const = 0;
-
-  // Raw state access for tests and diagnostics: 19 * count values, direction-major.
-  // write_state keeps the boundary-fed entries at their boundary values.
-  virtual void read_state(int system, std::vector<double>& f) const = 0;
-  virtual void write_state(int system, const std::vector<double>& f) = 0;
-
   virtual std::size_t bytes_in_use() const = 0;  // memory held on the backend's device
 
-  // Vectors for Krylov solvers (solve/krylov.h), shaped like the state of system 0 of the batch
-  // and living on the backend's device; one call per vector operation. A step is affine,
-  // T(x) = A x + b; the steady state solves (I - A) x = b. Vectors exclude what the boundary
-  // fixes (those entries stay 0), so A is one step with all boundary values 0.
+  // The other parts, or nullptr where this solver does not offer them.
+  virtual KrylovVectors* krylov_vectors() { return nullptr; }
+  virtual StateAccess* state_access() { return nullptr; }
+};
+
+// Vectors for Krylov solvers (solve/krylov.h), shaped like the state of system 0 of the batch
+// and living on the backend's device; one call per vector operation. A step is affine,
+// T(x) = A x + b; the steady state solves (I - A) x = b. Vectors exclude what the boundary
+// fixes (those entries stay 0), so A is one step with all boundary values 0.
+class KrylovVectors {
+ public:
+  virtual ~KrylovVectors() = default;
   virtual void vectors_reserve(int count) = 0;
   virtual void vector_from_state(int v) = 0;       // v = the current state of system 0
   virtual void vector_to_state(int v) = 0;         // system 0's state = v (boundary kept)
@@ -107,6 +116,16 @@ class LatticeSolver {
   virtual void vector_apply(int x, int y) = 0;     // y = A x
   virtual void vector_axpby(double a, int x, double b, int y) = 0;  // y = a x + b y
   virtual double vector_dot(int x, int y) = 0;     // summed in a fixed order (deterministic)
+};
+
+// Raw state access for tests and diagnostics: 19 * count values, direction-major, the values
+// f_m(node) a step starts from (whatever the backend's own layout).
+class StateAccess {
+ public:
+  virtual ~StateAccess() = default;
+  virtual void read_state(int system, std::vector<double>& f) const = 0;
+  // Keeps the boundary-fed entries at their boundary values.
+  virtual void write_state(int system, const std::vector<double>& f) = 0;
 };
 
 class Backend {

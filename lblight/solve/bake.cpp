@@ -79,7 +79,7 @@ class BatchRunner {
                             solver_, false);
         };
       const KrylovResult kr =
-          bicgstab(solver_, residual_tolerance, pol.max_steps - out_.steps, opt_.cancel, iterate);
+          bicgstab(*solver_.krylov_vectors(), residual_tolerance, pol.max_steps - out_.steps, opt_.cancel, iterate);
       out_.steps += kr.steps;
       out_.krylov_iterations += kr.iterations;
       out_.krylov_residual = kr.residual;
@@ -280,6 +280,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   so.precision = opt.precision;
   so.max_systems = capacity;
   auto solver = backend.create(mp.lattice, mp.channels, so);
+  if (mp.steps.method == SolverMethod::BiCGStab) krylov_vectors_of(*solver, backend.name());  // offered, or stop here
   observer.model_started(mp, backend, solver->bytes_in_use());
 
   std::vector<SystemRef> queue;

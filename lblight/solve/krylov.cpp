@@ -10,7 +10,15 @@ namespace {
 enum Vec { kX, kR, kRhat, kP, kV, kS, kT, kB, kCount };
 }  // namespace
 
-KrylovResult bicgstab(LatticeSolver& s, double tolerance, int max_steps, const std::atomic<bool>* cancel,
+KrylovVectors& krylov_vectors_of(LatticeSolver& solver, const std::string& backend) {
+  KrylovVectors* v = solver.krylov_vectors();
+  if (!v)
+    throw Error(ErrorCategory::Unavailable, "the " + backend + " backend has no Krylov vector operations; use "
+                                            "solver method plain");
+  return *v;
+}
+
+KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const std::atomic<bool>* cancel,
                       const KrylovProgress& progress) {
   KrylovResult out;
   s.vectors_reserve(kCount);

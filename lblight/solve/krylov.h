@@ -1,11 +1,12 @@
 // Accelerated steady state: BiCGStab on (I - A) x = b, where one LB step is T(x) = A x + b
 // with the boundary values fixed (the plain iteration x <- T(x) converges to the same x).
-// Written once against LatticeSolver's vector operations, so it runs on every backend; it
+// Written once against a solver's KrylovVectors, so it runs on every backend that offers them; it
 // solves system 0 of the solver's current batch and leaves the solution as that system's state.
 #pragma once
 
 #include <atomic>
 #include <functional>
+#include <string>
 
 #include "lblight/backend/backend.h"
 
@@ -24,7 +25,10 @@ using KrylovProgress = std::function<void(const KrylovResult&)>;
 
 // Starts from system 0's current state. Stops at relative residual `tolerance` or after
 // `max_steps` applications of A.
-KrylovResult bicgstab(LatticeSolver& solver, double tolerance, int max_steps,
+// The Krylov part of `solver` (backend.h); Error(Unavailable) naming `backend` when it has none.
+KrylovVectors& krylov_vectors_of(LatticeSolver& solver, const std::string& backend);
+
+KrylovResult bicgstab(KrylovVectors& vectors, double tolerance, int max_steps,
                       const std::atomic<bool>* cancel = nullptr, const KrylovProgress& progress = {});
 
 }  // namespace lblight

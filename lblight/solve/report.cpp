@@ -41,7 +41,7 @@ std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, d
   double residual = 1e-10;
   const int k = sub.steps.check_interval;
   for (int round = 0; round < 6; ++round) {
-    info.steps += bicgstab(*solver, residual, 400 * sub.lattice.dims.longest(), cancel).steps;
+    info.steps += bicgstab(krylov_vectors_of(*solver, cpu.name()), residual, 400 * sub.lattice.dims.longest(), cancel).steps;
     monitor = ConvergenceMonitor(Precision::Float64);
     solver->measure(r);
     for (int c = 0; c < 6; ++c) {
@@ -56,7 +56,9 @@ std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, d
   info.estimate = monitor.error_estimate();
   info.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   std::vector<double> f;
-  solver->read_state(0, f);
+  StateAccess* state = solver->state_access();
+  if (!state) throw Error(ErrorCategory::Unavailable, "the reference backend has no state access");
+  state->read_state(0, f);
   const std::size_t n = sub.lattice.dims.count();
   std::vector<double> totals(n, 0.0);
   for (int m = 0; m < 19; ++m)

@@ -113,21 +113,9 @@ class SimSolver final : public LatticeSolver {
     const SystemSpec& s = batch_.at(static_cast<std::size_t>(system));
     ref_.fill(Reference::solution_of(s), s.channel, d_, out);
   }
-  void read_state(int, std::vector<double>&) const override { unsupported(); }
-  void write_state(int, const std::vector<double>&) override { unsupported(); }
   std::size_t bytes_in_use() const override { return 0; }
-  void vectors_reserve(int) override { unsupported(); }
-  void vector_from_state(int) override { unsupported(); }
-  void vector_to_state(int) override { unsupported(); }
-  void vector_step_offset(int) override { unsupported(); }
-  void vector_apply(int, int) override { unsupported(); }
-  void vector_axpby(double, int, double, int) override { unsupported(); }
-  double vector_dot(int, int) override { unsupported(); }
 
  private:
-  [[noreturn]] static void unsupported() {
-    throw Error(ErrorCategory::Unavailable, "the simulated device runs the plain iteration only");
-  }
   double value_bytes() const { return p_ == Precision::Float16 ? 2.0 : 4.0; }
   double interior() const { return static_cast<double>(d_.interior_count()); }
   void queue(double seconds) {
