@@ -17,7 +17,7 @@
 #include <xmmintrin.h>
 #endif
 
-#include "lblight/backend/boundary.h"
+#include "lblight/backend/node_rules.h"
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/d3q19.h"

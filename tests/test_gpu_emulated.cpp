@@ -130,25 +130,17 @@ class EmulatedGpu {
     const long long interior = static_cast<long long>(a_.d.interior_count());
     std::vector<Residual> out;
     for (int s = 0; s < a_.systems; ++s) {
-      double total[gpu::kReduceSlots] = {0, 0, 0, 0, 0, 0, 0};
+      double total[kReduceSlots] = {0, 0, 0, 0, 0, 0, 0};
       for (long long b0 = 0; b0 < interior; b0 += 256) {
-        double block[gpu::kReduceSlots] = {0, 0, 0, 0, 0, 0, 0};
+        double block[kReduceSlots] = {0, 0, 0, 0, 0, 0, 0};
         for (long long n = b0; n < std::min(interior, b0 + 256); ++n) {
           int x, y, z;
           gpu::interior_coords(a_.d, n, x, y, z);
-          gpu::accumulate(block, gpu::measure_node(a_, tb_, s, x, y, z));
+          accumulate(block, gpu::measure_node(a_, tb_, s, x, y, z));
         }
-        gpu::combine(total, block);
+        combine(total, block);
       }
-      Residual r;
-      r.diff_sq = total[gpu::kDiffSq];
-      r.total_sq = total[gpu::kTotalSq];
-      r.deficit_sq = total[gpu::kDeficitSq];
-      r.diff_max = total[gpu::kDiffMax];
-      r.total_max = total[gpu::kTotalMax];
-      r.deficit_max = total[gpu::kDeficitMax];
-      r.finite = total[gpu::kNonFinite] == 0.0;
-      out.push_back(r);
+      out.push_back(to_residual(total));
     }
     return out;
   }

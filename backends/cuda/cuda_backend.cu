@@ -39,7 +39,7 @@ struct Storage<gpu_half> {
 };
 
 // Batch tables in constant memory (one solver owns them at a time; see Solver::bind).
-__constant__ CollisionOp<float> c_ops[kMaxChannels][kMaxMaterialsGpu];
+__constant__ CollisionOp<float> c_ops[kMaxChannels][kMaxMaterials];
 __constant__ unsigned c_absorb[kMaxChannels];
 __constant__ int c_channel[kMaxBatch];
 __constant__ float c_boundary[kMaxBatch][19];
@@ -118,8 +118,7 @@ __global__ void init_totals_kernel(float* totals, Dims d, int systems) {
   if (n >= count) return;
   const int x = static_cast<int>(n % d.nx), y = static_cast<int>((n / d.nx) % d.ny),
             z = static_cast<int>(n / (static_cast<long long>(d.nx) * d.ny));
-  const bool boundary = d.is_boundary(x, y, z);
-  for (int s = 0; s < systems; ++s) totals[s * count + n] = boundary ? c_boundary_total[s] : 0.0f;
+  for (int s = 0; s < systems; ++s) totals[s * count + n] = initial_total(d, x, y, z, c_boundary_total[s]);
 }
 
 // Block-level partial sums per system, written to partial[(block * systems + s) * slots].
@@ -284,7 +283,7 @@ class Solver final : public LatticeSolver, public KrylovVectors, public StateAcc
       : d_(g.dims), capacity_(capacity) {
     check_geometry(g, "cuda");  // the step kernel picks its operator by the material byte
     if (d_.ny - 2 > 65535 || d_.nz - 2 > 65535) throw_invalid("lattice too large for the CUDA launch grid");
-    if (static_cast<int>(channels.size()) > kMaxChannels || g.material_count > kMaxMaterialsGpu)
+    if (static_cast<int>(channels.size()) > kMaxChannels || g.material_count > kMaxMaterials)
       throw std::logic_error("cuda backend: too many channels or materials");
     if (capacity_ < 1 || capacity_ > kMaxBatch) throw std::logic_error("cuda backend: batch capacity out of range");
     for (std::size_t c = 0; c < channels.size(); ++c) {
@@ -357,18 +356,7 @@ class Solver final : public LatticeSolver, public KrylovVectors, public StateAcc
     GPU_CHECK(gpuGetLastError());
     std::vector<double> host(static_cast<std::size_t>(a.systems) * kReduceSlots);
     GPU_CHECK(gpuMemcpy(host.data(), reduced_.get(), host.size() * sizeof(double), gpuMemcpyDeviceToHost));
-    out.assign(static_cast<std::size_t>(a.systems), Residual{});
-    for (int s = 0; s < a.systems; ++s) {
-      const double* v = host.data() + static_cast<std::size_t>(s) * kReduceSlots;
-      Residual& r = out[static_cast<std::size_t>(s)];
-      r.diff_sq = v[kDiffSq];
-      r.total_sq = v[kTotalSq];
-      r.deficit_sq = v[kDeficitSq];
-      r.diff_max = v[kDiffMax];
-      r.total_max = v[kTotalMax];
-      r.deficit_max = v[kDeficitMax];
-      r.finite = v[kNonFinite] == 0.0 && std::isfinite(v[kTotalSq]);
-    }
+    for (int s = 0; s < a.systems; ++s) out.push_back(to_residual(host.data() + static_cast<std::size_t>(s) * kReduceSlots));
   }
 
   void read_totals(int system, float* out) const override {
@@ -559,7 +547,7 @@ class Solver final : public LatticeSolver, public KrylovVectors, public StateAcc
   long long stride_ = 0;
   int channel_count_ = 0;
   int device_ = 0;
-  CollisionOp<float> ops_[kMaxChannels][kMaxMaterialsGpu] = {};
+  CollisionOp<float> ops_[kMaxChannels][kMaxMaterials] = {};
   unsigned absorb_[kMaxChannels] = {};
   DeviceBuffer<float> density_;
   DeviceBuffer<std::uint8_t> material_;

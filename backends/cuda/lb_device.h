@@ -7,7 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "lblight/backend/boundary.h"
+#include "lblight/backend/node_rules.h"
 #include "lblight/lattice/collide.h"
 #include "lblight/lattice/lattice.h"
 
@@ -15,7 +15,6 @@ namespace lblight::gpu {
 
 inline constexpr int kMaxBatch = 64;     // systems one launch updates side by side
 inline constexpr int kMaxChannels = 3;   // distinct colour channels per lattice
-inline constexpr int kMaxMaterialsGpu = 2;
 
 // How a storage type converts to and from the float arithmetic. float here; the .cu file adds
 // the half-precision specialisation.
@@ -62,15 +61,15 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
     float f[d3q19::kQ];
     LBL_UNROLL
     for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
-    const float keep = ((tb.absorb_bits(c) >> k) & 1u) ? 0.0f : 1.0f;
+    const float keep = f0_keep<float>(tb.absorb_bits(c), k);
     const auto push = [&](int m, float v) {
       dst[m * a.stride + d3q19::cx(m) + d3q19::cy(m) * sy + d3q19::cz(m) * sz] = Storage<T>::store(v);
     };
     // The operator picked with literal indices: its ~180 coefficients are then read at fixed
     // addresses (on the GPU, constant-bank operands of the FMAs) instead of through a per-thread
     // address, which costs a separate load each and serializes in a warp straddling two materials.
-    static_assert(kMaxChannels == 3 && kMaxMaterialsGpu == 2, "one case per channel and material");
-    switch (c * kMaxMaterialsGpu + static_cast<int>(k)) {
+    static_assert(kMaxChannels == 3 && kMaxMaterials == 2, "one case per channel and material");
+    switch (c * kMaxMaterials + static_cast<int>(k)) {
       case 0: collide_node(tb.op(0, 0), keep, rho, f, push); break;
       case 1: collide_node(tb.op(0, 1), keep, rho, f, push); break;
       case 2: collide_node(tb.op(1, 0), keep, rho, f, push); break;
@@ -94,55 +93,21 @@ LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables
   }
 }
 
-// What one interior node contributes to measure() for system s.
-struct NodeResidual {
-  double total = 0, diff = 0, deficit = 0;
-};
-
-// Totals of system s at interior node (x, y, z): stores them and returns how they changed.
+// Totals of system s at interior node (x, y, z): stores them and returns how they changed
+// (node_residual, backend/node_rules.h, over this layout).
 template <typename T, typename Tables>
 LBL_HOSTDEV LBL_FORCEINLINE NodeResidual measure_node(const BatchArgs<T>& a, const Tables& tb, int s, int x, int y,
                                                       int z) {
   const std::size_t i = a.d.index(x, y, z);
   const T* src = a.cur + s * a.system_stride + i;
   float f[d3q19::kQ];
-  float t = 0.0f;
   LBL_UNROLL
-  for (int m = 0; m < d3q19::kQ; ++m) {
-    f[m] = Storage<T>::load(src[m * a.stride]);
-    t += f[m];
-  }
+  for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
   float* total = a.totals + static_cast<std::size_t>(s) * a.d.count() + i;
-  NodeResidual r;
-  r.total = t;
-  r.diff = static_cast<double>(t) - static_cast<double>(*total);
-  *total = t;
   const int c = tb.channel(s);
   const unsigned k = a.material[i];
-  if (a.density[i] > 0.0f && !((tb.absorb_bits(c) >> k) & 1u))
-    r.deficit = static_cast<double>(f0_deficit(tb.op(c, static_cast<int>(k)), f));
-  return r;
-}
-
-// The seven numbers measure() reduces per system, in a fixed order.
-enum ReduceSlot { kDiffSq, kTotalSq, kDeficitSq, kDiffMax, kTotalMax, kDeficitMax, kNonFinite, kReduceSlots };
-
-LBL_HOSTDEV inline void accumulate(double (&acc)[kReduceSlots], const NodeResidual& r) {
-  acc[kDiffSq] += r.diff * r.diff;
-  acc[kTotalSq] += r.total * r.total;
-  acc[kDeficitSq] += r.deficit * r.deficit;
-  const double ad = r.diff < 0 ? -r.diff : r.diff, at = r.total < 0 ? -r.total : r.total;
-  const double af = r.deficit < 0 ? -r.deficit : r.deficit;
-  acc[kDiffMax] = acc[kDiffMax] > ad ? acc[kDiffMax] : ad;
-  acc[kTotalMax] = acc[kTotalMax] > at ? acc[kTotalMax] : at;
-  acc[kDeficitMax] = acc[kDeficitMax] > af ? acc[kDeficitMax] : af;
-  // r.total - r.total is 0 for finite values and NaN otherwise
-  if (!(r.total - r.total == 0.0)) acc[kNonFinite] = 1.0;
-}
-
-LBL_HOSTDEV inline void combine(double (&acc)[kReduceSlots], const double* other) {
-  for (int k = 0; k < kDiffMax; ++k) acc[k] += other[k];
-  for (int k = kDiffMax; k < kReduceSlots; ++k) acc[k] = acc[k] > other[k] ? acc[k] : other[k];
+  return node_residual(tb.op(c, static_cast<int>(k)), f0_keep<float>(tb.absorb_bits(c), k) != 0.0f, a.density[i], f,
+                       *total, *total);
 }
 
 // How step threads cover the interior: blocks of kStepThreads threads, bx along x times

@@ -32,7 +32,7 @@
 #define LBL_X86 0
 #endif
 
-#include "lblight/backend/boundary.h"
+#include "lblight/backend/node_rules.h"
 #include "lblight/core/aligned_buffer.h"
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
@@ -44,13 +44,6 @@ namespace lblight {
 namespace {
 
 using d3q19::kQ;
-
-// Per-row reduction for measure(): summed serially in row order so results do not depend on
-// the thread count.
-struct RowSums {
-  double diff_sq = 0, total_sq = 0, diff_max = 0, total_max = 0, deficit_sq = 0, deficit_max = 0;
-  bool finite = true;
-};
 
 // One cache line from an aligned buffer to aligned memory, bypassing the caches.
 template <typename Real>
@@ -156,7 +149,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     material_ = g.material;
     material_count_ = g.material_count;
     wood_.resize(n_);
-    for (std::size_t i = 0; i < n_; ++i) wood_[i] = material_[i] == 1 ? 1.0f : 0.0f;
+    for (std::size_t i = 0; i < n_; ++i) wood_[i] = material_[i] == kMaterialWood ? 1.0f : 0.0f;
     for (const auto& ch : channels) {
       std::array<CollisionOp<Real>, kMaxMaterials> ops{};
       for (int k = 0; k < material_count_; ++k) ops[k] = convert_op<Real>(reduce_omega(ch.omega[k]));
@@ -215,9 +208,14 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
   }
 
+  // Per row, the node rules' sums (backend/node_rules.h), then the rows added in row order: the
+  // result does not depend on the thread count.
   void measure(std::vector<Residual>& out) override {
     out.assign(static_cast<std::size_t>(active_), Residual{});
     const int rows_y = d_.ny - 2, rows_z = d_.nz - 2;
+    struct RowSums {
+      double v[kReduceSlots];
+    };
     std::vector<RowSums> rows(static_cast<std::size_t>(rows_y) * rows_z);
     for (int s = 0; s < active_; ++s) {
       Slot& slot = slots_[static_cast<std::size_t>(s)];
@@ -230,42 +228,21 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       for (int z = 1; z < d_.nz - 1; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
           const std::size_t base = d_.index(0, y, z);
-          RowSums r;
+          RowSums r{};
           for (int x = 1; x < d_.nx - 1; ++x) {
             const std::size_t i = base + static_cast<std::size_t>(x);
             Real f[kQ];
             gather(g, state_index(x, y, z), f);
-            Real t = 0;
-            for (int m = 0; m < kQ; ++m) t += f[m];
-            next[i] = t;
-            const double td = static_cast<double>(t);
-            const double dd = td - static_cast<double>(prev[i]);
-            r.diff_sq += dd * dd;
-            r.total_sq += td * td;
-            r.diff_max = std::max(r.diff_max, std::fabs(dd));
-            r.total_max = std::max(r.total_max, std::fabs(td));
-            if (!std::isfinite(td)) r.finite = false;
             const unsigned k = material_[i];
-            if (density_[i] > 0.0f && !((absorb_bits >> k) & 1u)) {
-              const double deficit = static_cast<double>(f0_deficit(ops[k], f));
-              r.deficit_sq += deficit * deficit;
-              r.deficit_max = std::max(r.deficit_max, std::fabs(deficit));
-            }
+            accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i],
+                                          next[i]));
           }
           rows[static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1)] = r;
         }
-      Residual res;
-      for (const RowSums& r : rows) {
-        res.diff_sq += r.diff_sq;
-        res.total_sq += r.total_sq;
-        res.diff_max = std::max(res.diff_max, r.diff_max);
-        res.total_max = std::max(res.total_max, r.total_max);
-        res.deficit_sq += r.deficit_sq;
-        res.deficit_max = std::max(res.deficit_max, r.deficit_max);
-        res.finite = res.finite && r.finite;
-      }
+      double sums[kReduceSlots] = {};
+      for (const RowSums& r : rows) combine(sums, r.v);
       std::swap(slot.totals, slot.scratch);
-      out[static_cast<std::size_t>(s)] = res;
+      out[static_cast<std::size_t>(s)] = to_residual(sums);
     }
   }
 
@@ -450,7 +427,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void init_totals(Real* t, Real boundary_total) const {
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
-        for (int x = 0; x < d_.nx; ++x) t[d_.index(x, y, z)] = d_.is_boundary(x, y, z) ? boundary_total : Real(0);
+        for (int x = 0; x < d_.nx; ++x) t[d_.index(x, y, z)] = initial_total(d_, x, y, z, boundary_total);
   }
 
   void step_system(Slot& slot) { sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_)); }
@@ -494,7 +471,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           const unsigned mask = row_mask_[r];
           if ((mask & (mask - 1)) == 0) {
             const int k = __builtin_ctz(mask);
-            const Real keep = ((absorb_bits >> k) & 1u) ? Real(0) : Real(1);
+            const Real keep = f0_keep<Real>(absorb_bits, static_cast<unsigned>(k));
             if (row_empty_[r]) stream_row<kStream>(src, dst, y, z, keep);
             else uniform_row<kStream>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
           } else {
@@ -587,10 +564,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const std::size_t base = d_.index(0, y, z);
     const float* __restrict density = density_.data() + base;
     const float* __restrict wood = wood_.data() + base;
-    const Real keep0 = (absorb_bits & 1u) ? Real(0) : Real(1);
-    const Real keep1 = (absorb_bits & 2u) ? Real(0) : Real(1);
-    const CollisionOp<Real>& medium = ops[0];
-    const CollisionOp<Real>& woody = ops[1];
+    const Real keep0 = f0_keep<Real>(absorb_bits, kMaterialMedium);
+    const Real keep1 = f0_keep<Real>(absorb_bits, kMaterialWood);
+    const CollisionOp<Real>& medium = ops[kMaterialMedium];
+    const CollisionOp<Real>& woody = ops[kMaterialWood];
     run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       gather_row(src, row, x, f);

@@ -12,16 +12,6 @@
 #include "lblight/lattice/collision_op.h"
 #include "lblight/lattice/d3q19.h"
 
-#if defined(__CUDACC__) || defined(__HIPCC__)
-#define LBL_UNROLL _Pragma("unroll")
-#elif defined(__clang__)
-#define LBL_UNROLL _Pragma("unroll")
-#elif defined(__GNUC__)
-#define LBL_UNROLL _Pragma("GCC unroll 19")
-#else
-#define LBL_UNROLL
-#endif
-
 namespace lblight {
 
 // Sums of the rows of one antipodal pair: E (even part plus re-emitted f_0) and O (odd part).
