@@ -241,6 +241,29 @@ std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g
   return out;
 }
 
+std::vector<std::vector<float>> solve_batch_totals(const Backend& b, const LatticeGeometry& g,
+                                                   const std::vector<ChannelMaterials>& ch,
+                                                   const std::vector<SystemSpec>& batch, int steps, Precision p) {
+  auto solver = b.create(g, ch, {p, static_cast<int>(batch.size())});
+  solver->reset(batch);
+  solver->step(steps);
+  std::vector<Residual> r;
+  solver->measure(r);
+  std::vector<std::vector<float>> out;
+  for (std::size_t s = 0; s < batch.size(); ++s) {
+    out.emplace_back(g.dims.count());
+    solver->read_totals(static_cast<int>(s), out.back().data());
+  }
+  return out;
+}
+
+const std::vector<ChannelMaterials>& leaf_channels() {
+  static const std::vector<ChannelMaterials> ch = {channel({0.109, 0.891, -0.12}, true, {0.109, 0.891, -1.0}, false),
+                                                   channel({0.091, 0.909, 0.09}, true, {0.091, 0.909, -1.0}, false),
+                                                   channel({0.118, 0.882, -0.33}, true, {0.118, 0.882, -1.0}, false)};
+  return ch;
+}
+
 std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
                                      const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps) {
   SolverOptions so;

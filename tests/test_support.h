@@ -87,6 +87,14 @@ KrylovVectors& krylov_of(LatticeSolver& solver);
 std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
                                 const SystemSpec& sys, int steps, Precision p = Precision::Float32);
 
+// Totals of every system of `batch` after `steps` steps, run side by side as one batch.
+std::vector<std::vector<float>> solve_batch_totals(const Backend& backend, const LatticeGeometry& g,
+                                                   const std::vector<ChannelMaterials>& ch,
+                                                   const std::vector<SystemSpec>& batch, int steps,
+                                                   Precision p = Precision::Float32);
+// Three leaf-like channels that differ (absorbing, g per channel) with bark-like wood (g = -1).
+const std::vector<ChannelMaterials>& leaf_channels();
+
 // The same in double from the raw state (for float64 runs, whose totals read_totals rounds).
 std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
                                      const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps);

@@ -15,25 +15,6 @@ namespace {
 std::array<double, 19> base(int j) { return base_boundary(j); }
 }  // namespace
 
-TEST_CASE("CPU backend matches the literal reference update (mixed materials, absorption)", "[transport]") {
-  const Dims dims{19, 14, 11};  // non-cubic, rows shorter and longer than a SIMD chunk
-  const LatticeGeometry g = random_lattice(dims, 0.95f, 0.15, 11);
-  REQUIRE(g.material_count == 2);
-  const OpticalParams leaf{0.109, 0.891, -0.12}, bark{0.109, 0.891, -1.0};
-  const auto backend = cpu_backend();
-  for (bool absorbs : {true, false})
-    for (int sol : {0, 3, 11}) {
-      ReferenceLattice ref(g, {build_omega(leaf), build_omega(bark)}, {absorbs, false}, base(sol));
-      ref.step(23);
-      const auto want = ref.totals();
-      const auto f32 = solve_totals(*backend, g, {channel(leaf, absorbs, bark)}, system_for(0, base(sol)), 23);
-      const auto f64 = solve_totals_f64(*backend, g, {channel(leaf, absorbs, bark)}, system_for(0, base(sol)), 23);
-      INFO("solution " << sol << ", absorbs " << absorbs);
-      CHECK(max_relative_difference(want, f32, 1e-3) < 1e-5);
-      CHECK(max_relative_difference(want, f64, 1e-3) < 1e-12);
-    }
-}
-
 TEST_CASE("Conformance catches a wrong update (the comparison can fail)", "[transport]") {
   const LatticeGeometry g = random_lattice({12, 12, 12}, 0.9f, 0.0, 4);
   const OpticalParams p{0.1, 0.8, 0.3};
@@ -153,16 +134,6 @@ TEST_CASE("Mass is conserved away from the boundary and lost only through it", "
   CHECK(mass() < 0.99 * m0);
 }
 
-TEST_CASE("The CPU backend rejects a lattice geometry that breaks the contract, naming the fault", "[transport]") {
-  const auto cpu = cpu_backend(1);
-  const auto ch = channel({0.1, 0.8, 0.6}, true, {0.1, 0.8, -1.0}, false);
-  for (const auto& b : broken_geometries()) {
-    INFO(b.fault);
-    CHECK_THROWS_WITH(cpu->create(b.g, {ch}, {Precision::Float32, 1}),
-                      Catch::Contains("cpu backend") && Catch::Contains(b.expect));
-  }
-}
-
 TEST_CASE("Results do not depend on the thread count", "[transport]") {
   const LatticeGeometry g = random_lattice({23, 17, 19}, 0.9f, 0.2, 3);
   const auto ch = channel({0.1, 0.8, 0.6}, true);
@@ -189,46 +160,5 @@ TEST_CASE("Streaming and regular stores give identical results (uniform, empty a
       solver->read_totals(0, out.back().data());
     }
     CHECK(out[0] == out[1]);
-  }
-}
-
-TEST_CASE("measure() reports the f_0 reservoir deficit of the nodes that keep f_0", "[transport]") {
-  // (Omega f)_0 = sigma_a sum_{j>=1} f_j - f_0 per interior node with rho > 0 whose material keeps
-  // f_0 (Residual): checked against a direct sum over an arbitrary state, leaves absorbing
-  // (their f_0 is dumped: no reservoir) or not, wood always keeping it
-  const Dims d{9, 8, 7};
-  const LatticeGeometry g = random_lattice(d, 0.9f, 0.3, 11);
-  const OpticalParams leaf{0.2, 0.6, 0.3}, wood{0.05, 0.9, -1.0};
-  for (bool leaf_absorbs : {false, true}) {
-    INFO("leaf absorbs " << leaf_absorbs);
-    SolverOptions so;
-    so.precision = Precision::Float64;
-    so.max_systems = 1;
-    auto solver = cpu_backend()->create(g, {channel(leaf, leaf_absorbs, wood, false)}, so);
-    solver->reset({system_for(0, std::array<double, 19>{})});
-    std::vector<double> f(19 * d.count());
-    for (std::size_t i = 0; i < f.size(); ++i) f[i] = 0.1 + 0.01 * static_cast<double>((i * 7919) % 101);
-    state_of(*solver).write_state(0, f);
-    state_of(*solver).read_state(0, f);  // as the backend holds it (entries fed by the boundary included)
-    double want_sq = 0, want_max = 0;
-    int counted = 0;
-    for (int z = 1; z < d.nz - 1; ++z)
-      for (int y = 1; y < d.ny - 1; ++y)
-        for (int x = 1; x < d.nx - 1; ++x) {
-          const std::size_t n = d.index(x, y, z);
-          const bool is_wood = g.material[n] == 1;
-          if (g.density[n] <= 0.0f || (!is_wood && leaf_absorbs)) continue;
-          double moving = 0;
-          for (int m = 1; m < 19; ++m) moving += f[m * d.count() + n];
-          const double deficit = (is_wood ? wood.sigma_a : leaf.sigma_a) * moving - f[n];
-          want_sq += deficit * deficit;
-          want_max = std::max(want_max, std::fabs(deficit));
-          ++counted;
-        }
-    REQUIRE(counted > 10);
-    std::vector<Residual> r;
-    solver->measure(r);
-    CHECK(r[0].deficit_sq == Approx(want_sq).epsilon(1e-12));
-    CHECK(r[0].deficit_max == Approx(want_max).epsilon(1e-12));
   }
 }
