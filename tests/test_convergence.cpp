@@ -28,7 +28,7 @@ struct SmallReport {
     opt.solutions = {5};
     opt.runs = {{SolverMethod::Plain, Precision::Float32}};
     const auto backend = cpu_backend();
-    report = make_report(plan, *backend, *backend, opt, [](const std::string&) {});
+    report = make_report(plan, *backend, *backend, opt);
   }
   const ReportCurve& curve() const { return report.curves.at(0); }
 };

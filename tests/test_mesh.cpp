@@ -486,11 +486,12 @@ TEST_CASE("Voxeliser: same result on any thread count, padding keeps the transfo
   CHECK(c.leaf_triangles > 0);
   VoxelizeOptions o;
   o.resolution = 24;
-  o.threads = 1;
-  const VoxelizeResult a = voxelize(m, c.part_class, o);
-  o.threads = 2;
+  RunContext one, two;
+  one.threads = 1;
+  two.threads = 2;
+  const VoxelizeResult a = voxelize(m, c.part_class, o, {}, one);
   o.padding = 2;
-  const VoxelizeResult b = voxelize(m, c.part_class, o);
+  const VoxelizeResult b = voxelize(m, c.part_class, o, {}, two);
   CHECK(b.grid.dims == Dims{a.grid.dims.nx + 4, a.grid.dims.ny + 4, a.grid.dims.nz + 4});
   CHECK(b.grid.index_min == std::array<int, 3>{-2, -2, -2});
   CHECK(b.grid.index_to_world == a.grid.index_to_world);
@@ -512,14 +513,15 @@ TEST_CASE("Voxeliser and model loading stop with Cancelled once the flag is set"
   std::atomic<bool> cancel{false};
   VoxelizeOptions o;
   o.resolution = 16;
-  o.cancel = &cancel;
-  CHECK(voxelize(m, c.part_class, o).stats.occupied_nodes > 0);  // an unset flag changes nothing
+  RunContext ctx;
+  ctx.cancel = &cancel;
+  CHECK(voxelize(m, c.part_class, o, {}, ctx).stats.occupied_nodes > 0);  // an unset flag changes nothing
   cancel = true;
-  expect_error(ErrorCategory::Cancelled, [&] { voxelize(m, c.part_class, o); });
+  expect_error(ErrorCategory::Cancelled, [&] { voxelize(m, c.part_class, o, {}, ctx); });
   MeshSource src;
   src.path = bush_obj_path();
   src.resolution = 16;
-  expect_error(ErrorCategory::Cancelled, [&] { voxelize_mesh_source(src, 0, {}, 0, &cancel); });
+  expect_error(ErrorCategory::Cancelled, [&] { voxelize_mesh_source(src, 0, {}, ctx); });
 }
 
 TEST_CASE("lblight voxelize writes density and brown grids that reopen with OpenVDB", "[mesh][cli]") {

@@ -72,9 +72,7 @@ BakeResult bake(const Scene& scene, Precision precision = Precision::Float32) {
   r.plan = make_plan(scene, ov);
   auto backend = cpu_backend(0);
   Keep keep(r.solutions);
-  BakeOptions opt;
-  opt.precision = precision;
-  bake_model(r.plan.models.at(0), *backend, opt, keep);
+  bake_model(r.plan.models.at(0), *backend, {}, keep);
   return r;
 }
 

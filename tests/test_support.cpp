@@ -208,7 +208,7 @@ BakedModel bake_first_model(const Scene& scene, const std::filesystem::path& out
   BakedModel b{make_plan(scene), {}};
   const ModelPlan& mp = b.model();
   auto backend = make_openmp_backend(0);
-  BakeOutput out(b.plan, out_dir, {"test", "cpu", backend->description(), Precision::Float32}, write_in_background);
+  BakeOutput out(b.plan, out_dir, {"test", "cpu", backend->description()}, write_in_background);
   Keep keep(out, b.kept);
   bake_model(mp, *backend, {}, keep);
   out.finish_model(mp);

@@ -12,8 +12,8 @@
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
-#include "lblight/pipeline/bake_output.h"
-#include "lblight/solve/bake.h"
+#include "lblight/io/output_dir.h"
+#include "lblight/pipeline/run_bake.h"
 
 namespace lblight::cli {
 namespace {
@@ -26,18 +26,15 @@ struct BakeArgs {
 // Progress on stderr: one line per solution, and a heartbeat every few seconds on long ones.
 class ProgressLog final : public BakeObserver {
  public:
-  explicit ProgressLog(BakeOutput& out, std::size_t total) : out_(out), total_(total) {}
+  explicit ProgressLog(std::size_t total) : total_(total) {}
 
   void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) override {
     const Dims& d = mp.lattice.dims;
     spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice)",
                  mp.spec->name, d.nx, d.ny, d.nz, mp.solutions.size(), mp.channels.size(), backend.name(),
                  format_bytes(static_cast<double>(bytes)));
-    out_.set_peak_bytes(mp, bytes);
     last_beat_ = std::chrono::steady_clock::now();
   }
-
-  void memory_in_use(const ModelPlan& mp, std::size_t bytes) override { out_.set_peak_bytes(mp, bytes); }
 
   void progress(const BakeProgress& ev) override {
     const auto now = std::chrono::steady_clock::now();
@@ -66,7 +63,6 @@ class ProgressLog final : public BakeObserver {
                      {mp.spec->name, r.plan.grid_name, format_direction(r.plan.direction),
                       r.plan.derived ? "sum" : std::to_string(r.iterations), format_seconds(r.seconds),
                       format_error(r.error_estimate)}});
-    out_.add(mp, r);
   }
 
   std::vector<std::vector<std::string>> rows() const {
@@ -80,7 +76,6 @@ class ProgressLog final : public BakeObserver {
   }
 
  private:
-  BakeOutput& out_;
   std::size_t total_, done_ = 0;
   std::chrono::steady_clock::time_point last_beat_;
   struct Row {
@@ -106,11 +101,10 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   std::future<std::unique_ptr<Backend>> starting;
   if (args.solve.backend != "cpu")
     starting = std::async(std::launch::async, [&args] { return args.solve.make_backend(); });
-  const BakePlan plan = make_plan(scene, ov);
+  const BakePlan plan = make_plan(scene, ov, args.solve.run_context());
   auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
-  const Precision precision = ov.precision.value_or(scene.solver.precision);
-  if (!backend->supports(precision))
-    throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(precision) +
+  if (!backend->supports(plan.precision))
+    throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
                       "; allowed: float32 or float64 on cpu, float32 or float16 on cuda",
                   {scene.file.string(), "/solver/precision", {}});
 
@@ -119,19 +113,10 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   std::size_t total = 0;
   for (const ModelPlan& mp : plan.models) total += mp.solutions.size();
 
-  // On a GPU the host waits on the device: convert and write each solution while the next solves.
-  BakeOutput output(plan, target, {global.command_line, backend->name(), backend->description(), precision},
-                    /*write_in_background=*/!backend->occupies_host_cores());
-  ProgressLog log(output, total);
-  BakeOptions opt;
-  opt.precision = precision;
-  opt.cancel = &g_interrupted;
-  for (const ModelPlan& mp : plan.models) {
-    bake_model(mp, *backend, opt, log);
-    output.finish_model(mp);
-  }
+  ProgressLog log(total);
+  const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  run_bake(plan, *backend, target, global.command_line, log, args.solve.run_context(), before);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  output.commit(seconds);
 
   Table table({"model", "solution", "direction", "iterations", "seconds", "error estimate"});
   for (const auto& row : log.rows()) table.add(row);

@@ -3,7 +3,6 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <sstream>
@@ -13,9 +12,7 @@
 #include "backends/registry.h"
 #include "lblight/core/error.h"
 #include "lblight/core/relative_gap.h"
-#include "lblight/lattice/sun.h"
-#include "lblight/scene/procedural.h"
-#include "lblight/solve/plan.h"
+#include "lblight/solve/throughput.h"
 
 namespace lblight::cli {
 namespace {
@@ -32,60 +29,6 @@ struct BenchArgs {
   double bandwidth_mib = 0;
   bool json = false;
 };
-
-// size^3 lattice: "uniform" medium everywhere inside the boundary layer (every node collides:
-// the worst case for compute), or a procedural "cloud"/"plant" (a realistic mix of dense, thin
-// and empty rows) resampled into the cube.
-LatticeGeometry bench_lattice(const std::string& shape, int size) {
-  LatticeGeometry lat;
-  lat.dims = {size, size, size};
-  lat.density.assign(lat.dims.count(), 0.0f);
-  lat.material.assign(lat.dims.count(), 0);
-  if (shape == "uniform") {
-    for (int z = 1; z < size - 1; ++z)
-      for (int y = 1; y < size - 1; ++y)
-        for (int x = 1; x < size - 1; ++x) lat.density[lat.dims.index(x, y, z)] = 0.5f;
-    return lat;
-  }
-  ProceduralSource src;
-  src.shape = shape;
-  src.resolution = size - 2;
-  const ModelGrid grid = make_procedural(src);
-  for (int z = 0; z < grid.dims.nz; ++z)
-    for (int y = 0; y < grid.dims.ny; ++y)
-      for (int x = 0; x < grid.dims.nx; ++x) {
-        const std::size_t i = lat.dims.index(x + 1, y + 1, z + 1);
-        lat.density[i] = grid.density[grid.dims.index(x, y, z)];
-        lat.material[i] = grid.material[grid.dims.index(x, y, z)];
-      }
-  lat.material_count = shape == "plant" ? 2 : 1;
-  return lat;
-}
-
-ChannelMaterials bench_materials() {
-  ChannelMaterials ch;
-  ch.omega[0] = build_omega({0.008, 0.792, 0.9});
-  ch.omega[1] = build_omega({0.008, 0.792, -1.0});
-  return ch;
-}
-
-// Totals of one system (sun along lattice direction 1) after `steps` steps.
-std::vector<float> bench_totals(const Backend& backend, const LatticeGeometry& lat, Precision precision, int steps) {
-  SolverOptions so;
-  so.precision = precision;
-  so.max_systems = 1;
-  auto solver = backend.create(lat, {bench_materials()}, so);
-  SystemSpec sys;
-  const auto b = base_boundary(1);
-  for (int i = 0; i < 19; ++i) sys.boundary[i] = b[i];
-  solver->reset({sys});
-  solver->step(steps);
-  std::vector<Residual> r;
-  solver->measure(r);
-  std::vector<float> t(lat.dims.count());
-  solver->read_totals(0, t.data());
-  return t;
-}
 
 int run_bench(const BenchArgs& a) {
   auto backend = make_backend({a.backend, a.threads, a.device});
@@ -106,51 +49,18 @@ int run_bench(const BenchArgs& a) {
   for (const std::string& pname : a.precisions) {
     const Precision precision = parse_precision(pname);
     for (int size : a.sizes) {
-      LatticeGeometry lat = bench_lattice(a.shape, size);
-      const ChannelMaterials ch = bench_materials();
-      SolverOptions so;
-      so.precision = precision;
-      so.max_systems = a.systems;
-      auto solver = backend->create(lat, {ch}, so);
-      std::vector<SystemSpec> batch(static_cast<std::size_t>(a.systems));
-      for (int s = 0; s < a.systems; ++s) {
-        const auto b = base_boundary(1 + s % 18);
-        for (int i = 0; i < 19; ++i) batch[static_cast<std::size_t>(s)].boundary[i] = b[i];
-      }
-      solver->reset(batch);
-      // Warm up for at least 0.3 s (an idle GPU clocks down; caches and pages settle), doubling
-      // the steps; measure() waits for an asynchronous backend's steps.
-      std::vector<Residual> r;
-      double step_seconds = 0, warm = 0;
-      for (int n = 2; warm < 0.3 && n <= (1 << 20); n *= 2) {
-        const auto t0 = std::chrono::steady_clock::now();
-        solver->step(n);
-        solver->measure(r);
-        const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        step_seconds = dt / n;
-        warm += dt;
-      }
-      int steps = a.steps;
-      if (steps <= 0)  // about two seconds of work
-        steps = std::max(4, std::min(1 << 22, static_cast<int>(2.0 / std::max(step_seconds, 1e-9))));
-      const auto t0 = std::chrono::steady_clock::now();
-      solver->step(steps);
-      solver->measure(r);  // also synchronises asynchronous backends
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      const double updates = static_cast<double>(lat.dims.interior_count()) * steps * a.systems;
-      const double lups = updates / seconds;
-      // both levels of every system's state: at most this, and only this, is touched per step
-      const double state_bytes = 2.0 * 19.0 * static_cast<double>(lat.dims.count()) * a.systems * bytes_per_value(precision);
+      const LatticeGeometry lat = bench_lattice(a.shape, size);
+      const ThroughputRun run = measure_throughput(*backend, lat, precision, a.systems, a.steps);
       out["runs"].push_back({{"lattice", {lat.dims.nx, lat.dims.ny, lat.dims.nz}},
                              {"precision", pname},
                              {"systems", a.systems},
-                             {"steps", steps},
-                             {"seconds", seconds},
-                             {"updates_per_second_per_channel", lups},
+                             {"steps", run.steps},
+                             {"seconds", run.seconds},
+                             {"updates_per_second_per_channel", run.updates_per_second},
                              {"bytes_per_update", bytes_per_update(precision)},
-                             {"achieved_gbs", lups * bytes_per_update(precision) / 1e9},
-                             {"state_bytes", state_bytes},
-                             {"state_within_cache", cache > 0 && state_bytes <= 2.0 * static_cast<double>(cache)}});
+                             {"achieved_gbs", run.updates_per_second * bytes_per_update(precision) / 1e9},
+                             {"state_bytes", run.state_bytes},
+                             {"state_within_cache", cache > 0 && run.state_bytes <= 2.0 * static_cast<double>(cache)}});
     }
   }
   // The probe runs before and after the lattice runs; the larger figure is the reference, so the

@@ -58,10 +58,11 @@ int run_report(const ReportArgs& args) {
   } else if (backend->supports(Precision::Float16)) {
     opt.runs.push_back({SolverMethod::Plain, Precision::Float16});
   }
-  opt.cancel = &g_interrupted;
-  const BakePlan plan = make_plan(scene, ov);
+  RunContext ctx = args.solve.run_context();
+  ctx.progress = [](const std::string& s) { spdlog::info("{}", s); };
+  const BakePlan plan = make_plan(scene, ov, ctx);
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
-  const Report rep = make_report(plan, *backend, *reference, opt, [](const std::string& s) { spdlog::info("{}", s); });
+  const Report rep = make_report(plan, *backend, *reference, opt, ctx);
 
   StagedDirectory dir(target, OutputKind::Report);
   nlohmann::json j;

@@ -11,8 +11,8 @@
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
 #include "lblight/pipeline/bake_output.h"
-#include "lblight/solve/bake.h"
-#include "lblight/solve/calibrate.h"
+#include "lblight/solve/plan_cost.h"
+#include "lblight/solve/throughput.h"
 
 namespace lblight::cli {
 namespace {
@@ -64,7 +64,7 @@ int run_validate(const ValidateArgs& args) {
   const Scene scene = load_scene(args.solve.scene);
   const PlanOverrides ov = args.solve.overrides();
   auto backend = args.solve.make_backend();
-  const BakePlan plan = make_plan(scene, ov);
+  const BakePlan plan = make_plan(scene, ov, args.solve.run_context());
   const Precision precision = plan.precision;
   if (!backend->supports(precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(precision),
@@ -83,13 +83,9 @@ int run_validate(const ValidateArgs& args) {
   for (const ModelPlan& mp : plan.models) {
     const Dims& gd = mp.grid.dims;
     const Dims& ld = mp.lattice.dims;
-    const std::size_t per_system = backend->bytes_per_system(ld, precision);
-    const std::size_t per_lattice = backend->bytes_per_lattice(ld);
-    const std::size_t batch = std::min<std::size_t>(mp.channels.size(), mp.systems());
-    const double memory = static_cast<double>(per_lattice + batch * per_system);
-    const double host_results = static_cast<double>(mp.solutions.size()) * 3.0 * ld.count() * sizeof(float);
-    const double updates = static_cast<double>(mp.systems()) * mp.estimated_steps * static_cast<double>(ld.interior_count());
-    const double seconds = ups > 0 ? updates / ups : 0.0;
+    const PlanCost cost = plan_cost(mp, *backend);
+    const double memory = static_cast<double>(cost.device_bytes);
+    const double seconds = cost.seconds(ups);
     total_seconds += seconds;
 
     std::string sols;
@@ -113,21 +109,11 @@ int run_validate(const ValidateArgs& args) {
            << static_cast<long long>(mp.estimated_steps) << " per solution";
     else
       text << ", " << mp.steps.fixed_steps << " per solution";
-    text << "\n  memory: " << format_bytes(memory) << " on the " << backend->name() << " backend (" << batch
-         << " system(s) of " << format_bytes(static_cast<double>(per_system)) << "), " << format_bytes(host_results)
-         << " of results on the host\n";
-    // bake's own memory rule (batch_capacity). The scene may be meant for a bigger machine, so
-    // here it is a warning.
-    bool fits = true;
-    try {
-      BakeOptions bo;
-      bo.precision = precision;
-      batch_capacity(mp, *backend, bo);
-    } catch (const Error& e) {
-      if (e.category() != ErrorCategory::Unavailable) throw;
-      fits = false;
-      spdlog::warn("{}; bake would fail on this machine", e.what());
-    }
+    text << "\n  memory: " << format_bytes(memory) << " on the " << backend->name() << " backend ("
+         << cost.batch_systems << " system(s) of " << format_bytes(static_cast<double>(cost.bytes_per_system))
+         << " per batch), " << format_bytes(cost.host_result_bytes) << " of results on the host\n";
+    // The scene may be meant for a bigger machine, so here it is a warning.
+    if (!cost.fits) spdlog::warn("{}; bake would fail on this machine", cost.why_not);
     if (ups > 0)
       text << "  estimated run time: " << format_seconds(seconds) << " s (" << mp.systems() << " systems x ~"
            << static_cast<long long>(mp.estimated_steps) << " steps at " << format_seconds(ups / 1e6)
@@ -147,7 +133,7 @@ int run_validate(const ValidateArgs& args) {
     m["savings"] = savings_json(mp);
     m["steps"] = {{"mode", to_string(mp.steps.mode)}, {"estimated_per_solution", mp.estimated_steps}};
     m["memory_bytes"] = memory;
-    m["fits_available_memory"] = fits;
+    m["fits_available_memory"] = cost.fits;
     m["estimated_seconds"] = seconds;
     out["models"].push_back(m);
   }

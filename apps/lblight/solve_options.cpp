@@ -48,8 +48,14 @@ PlanOverrides SolveOptions::overrides() const {
   if (tolerance > 0) ov.tolerance = tolerance;
   if (!precision.empty()) ov.precision = parse_precision(precision);
   if (!method.empty()) ov.method = method == "bicgstab" ? SolverMethod::BiCGStab : SolverMethod::Plain;
-  ov.cancel = &g_interrupted;
   return ov;
+}
+
+RunContext SolveOptions::run_context() const {
+  RunContext ctx;
+  ctx.cancel = &g_interrupted;
+  ctx.threads = threads;
+  return ctx;
 }
 
 std::unique_ptr<Backend> SolveOptions::make_backend() const {

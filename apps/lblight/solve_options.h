@@ -26,6 +26,8 @@ struct SolveOptions {
 
   void add_to(CLI::App& cmd);
   PlanOverrides overrides() const;
+  // Cancelled by the CLI's signal handlers; host threads from --threads.
+  RunContext run_context() const;
   std::unique_ptr<Backend> make_backend() const;
 };
 

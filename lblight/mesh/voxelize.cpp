@@ -170,7 +170,7 @@ Bins make_bins(std::size_t bins, const std::vector<std::pair<std::uint32_t, std:
 }  // namespace
 
 VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClass>& part_class,
-                        const VoxelizeOptions& opt, const Location& where) {
+                        const VoxelizeOptions& opt, const Location& where, const RunContext& ctx) {
   const auto t_start = std::chrono::steady_clock::now();
   if (opt.resolution < 1 || opt.resolution > 8192)
     throw_invalid("voxelize: resolution " + std::to_string(opt.resolution) + " is out of range; allowed: 1..8192", where);
@@ -268,7 +268,7 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
   // Triangles in fine-index coordinates.
   std::vector<Prepared> prep(mesh.triangles.size());
   const long long ntri = static_cast<long long>(mesh.triangles.size());
-  const int threads = opt.threads > 0 ? opt.threads : omp_get_max_threads();
+  const int threads = ctx.threads > 0 ? ctx.threads : omp_get_max_threads();
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (long long i = 0; i < ntri; ++i) {
     if (!usable[static_cast<std::size_t>(i)]) continue;
@@ -365,7 +365,7 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
         cnt_wood(cnt_occ.size());
 #pragma omp for schedule(dynamic, 1)
     for (long long col = 0; col < columns; ++col) {
-      if (opt.cancel && opt.cancel->load(std::memory_order_relaxed)) continue;  // no throw inside OpenMP
+      if (ctx.cancelled()) continue;  // no throw inside OpenMP
       const int tx = static_cast<int>(col % T[0]), ty = static_cast<int>(col / T[0]);
       const int x0 = tx * F, y0 = ty * F, fx = std::min(F, N[0] - x0), fy = std::min(F, N[1] - y0);
       // Solid fill: intervals of inside cells per fine column, from sorted ray crossings.
@@ -466,7 +466,7 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
       }
     }
   }
-  throw_if_cancelled(opt.cancel);
+  ctx.check_cancelled();
   st.fine_occupied = occ_total;
   st.fine_leaf = leaf_total;
   st.fine_wood = wood_total;

@@ -6,11 +6,11 @@
 #pragma once
 
 #include <array>
-#include <atomic>
 #include <cstdint>
 #include <vector>
 
 #include "lblight/core/error.h"
+#include "lblight/core/run_context.h"
 #include "lblight/mesh/classify.h"
 #include "lblight/mesh/triangle_mesh.h"
 #include "lblight/lattice/dense_grid.h"
@@ -32,8 +32,6 @@ struct VoxelizeOptions {
   std::array<double, 3> bounds_min{}, bounds_max{};
   int padding = 0;       // empty nodes added on every side (index_min becomes -padding)
   FillMode fill = FillMode::None;
-  int threads = 0;       // 0: all cores (OpenMP default)
-  const std::atomic<bool>* cancel = nullptr;  // polled per tile column: Error(Cancelled) once set
 };
 
 struct VoxelizeStats {
@@ -56,8 +54,9 @@ struct VoxelizeResult {
 
 // `part_class` gives leaf or wood per mesh part (classify_parts). Throws Error(InvalidInput)
 // with `where` for options out of range, non-finite vertices, a box of zero size, or a mesh
-// with no triangle of non-zero area inside the box; Error(Cancelled) when options.cancel is set.
+// with no triangle of non-zero area inside the box. Runs on ctx.threads threads (0: all cores)
+// and polls ctx.cancel per tile column: Error(Cancelled) once it is set.
 VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClass>& part_class,
-                        const VoxelizeOptions& options, const Location& where = {});
+                        const VoxelizeOptions& options, const Location& where = {}, const RunContext& ctx = {});
 
 }  // namespace lblight

@@ -278,7 +278,7 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   m["lighting"] = plan_.scene->lighting.mode == LightingMode::Base ? "base" : "static";
   m["backend"] = {{"name", info_.backend_name},
                   {"description", info_.backend_description},
-                  {"precision", to_string(info_.precision)}};
+                  {"precision", to_string(plan_.precision)}};
   m["models"] = models_;
   m["total_seconds"] = total_seconds;
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");

@@ -21,10 +21,10 @@
 
 namespace lblight {
 
+// What the manifest records about the run besides the plan (which holds the precision).
 struct BakeRunInfo {
   std::string command_line;
   std::string backend_name, backend_description;
-  Precision precision = Precision::Float32;
 };
 
 class BakeOutput {

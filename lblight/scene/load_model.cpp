@@ -8,7 +8,7 @@
 
 namespace lblight {
 
-ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const std::atomic<bool>* cancel) {
+ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const RunContext& ctx) {
   ModelGrid g;
   switch (model.density.type) {
     case SourceType::Procedural: g = make_procedural(model.density.procedural); break;
@@ -17,14 +17,14 @@ ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const std:
       g = read_vdb_density(v.path, v.grid, v.wood_grid, {scene.file.string(), model.density.json_path, {}});
       break;
     }
-    case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}, cancel);
+    case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}, ctx);
       break;
   }
   // NaN stays NaN through the scale and is reported below with its voxel.
   const float scale = static_cast<float>(model.density.density_scale);
   if (scale != 1.0f)
     for (float& d : g.density) d *= scale;
-  throw_if_cancelled(cancel);  // a procedural or .vdb source does not poll
+  ctx.check_cancelled();  // a procedural or .vdb source does not poll
   check_density_values(model, g, scene);
   for (std::size_t i = 0; i < g.density.size(); ++i)
     if (g.density[i] == 0.0f) g.material[i] = kMaterialMedium;

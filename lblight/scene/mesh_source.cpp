@@ -16,8 +16,8 @@ FillMode parse_fill_mode(const std::string& text) {
   throw std::invalid_argument("unknown fill mode '" + text + "'; allowed: none, parity, winding");
 }
 
-MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Location& where, int threads,
-                                const std::atomic<bool>* cancel) {
+MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Location& where,
+                                const RunContext& ctx) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string name = source.path.string();
   MeshVoxels out;
@@ -47,10 +47,8 @@ MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Loc
   opt.bounds_min = source.bounds_min;
   opt.bounds_max = source.bounds_max;
   opt.padding = padding;
-  opt.threads = threads;
-  opt.cancel = cancel;
   opt.fill = parse_fill_mode(source.fill);
-  out.voxels = voxelize(mesh, out.classes.part_class, opt, where);
+  out.voxels = voxelize(mesh, out.classes.part_class, opt, where, ctx);
   const VoxelizeStats& st = out.voxels.stats;
   if (st.degenerate > 0) spdlog::warn("{}: {} degenerate (zero-area) triangle(s) skipped", name, st.degenerate);
   if (st.outside > 0) spdlog::warn("{}: {} triangle(s) lie outside the bounds and are skipped", name, st.outside);
@@ -71,8 +69,8 @@ MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Loc
   return out;
 }
 
-ModelGrid load_mesh_density(const MeshSource& source, const Location& where, const std::atomic<bool>* cancel) {
-  return std::move(voxelize_mesh_source(source, 0, where, 0, cancel).voxels.grid);
+ModelGrid load_mesh_density(const MeshSource& source, const Location& where, const RunContext& ctx) {
+  return std::move(voxelize_mesh_source(source, 0, where, ctx).voxels.grid);
 }
 
 }  // namespace lblight

@@ -20,13 +20,13 @@ struct MeshVoxels {
 // Reads source.path, classifies its parts and voxelises it with `padding` empty nodes around.
 // Logs a summary (info) and every skipped item (warn: unmatched parts, degenerate triangles,
 // triangles outside the bounds, open columns when filling). Errors name `where` and the mesh.
-// `threads` 0 uses all cores; Error(Cancelled) once *cancel is set.
-MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Location& where, int threads = 0,
-                                const std::atomic<bool>* cancel = nullptr);
+// Voxelises on ctx.threads threads (0: all cores); Error(Cancelled) once ctx.cancel is set.
+MeshVoxels voxelize_mesh_source(const MeshSource& source, int padding, const Location& where,
+                                const RunContext& ctx = {});
 
 // The scene's `mesh` density source: voxelize_mesh_source with no padding (the model's margin
 // adds the empty boundary layer).
-ModelGrid load_mesh_density(const MeshSource& source, const Location& where, const std::atomic<bool>* cancel);
+ModelGrid load_mesh_density(const MeshSource& source, const Location& where, const RunContext& ctx);
 
 FillMode parse_fill_mode(const std::string& text);  // none | parity | winding; throws std::invalid_argument
 

@@ -38,10 +38,10 @@ struct BatchOutcome {
 
 class BatchRunner {
  public:
-  BatchRunner(const ModelPlan& mp, LatticeSolver& solver, const BakeOptions& opt, BakeObserver& observer,
+  BatchRunner(const ModelPlan& mp, LatticeSolver& solver, const RunContext& ctx, BakeObserver& observer,
               std::vector<const SolutionPlan*> solutions, std::size_t systems)
-      : mp_(mp), solver_(solver), opt_(opt), observer_(observer), solutions_(std::move(solutions)) {
-    out_.monitors.assign(systems, ConvergenceMonitor(opt.precision, 1.0 - mp.steps.decay_hint));
+      : mp_(mp), solver_(solver), ctx_(ctx), observer_(observer), solutions_(std::move(solutions)) {
+    out_.monitors.assign(systems, ConvergenceMonitor(mp.steps.precision, 1.0 - mp.steps.decay_hint));
     reset_latches();
     t0_ = Clock::now();
   }
@@ -79,12 +79,12 @@ class BatchRunner {
                             solver_, false);
         };
       const KrylovResult kr =
-          bicgstab(*solver_.krylov_vectors(), residual_tolerance, pol.max_steps - out_.steps, opt_.cancel, iterate);
+          bicgstab(*solver_.krylov_vectors(), residual_tolerance, pol.max_steps - out_.steps, ctx_, iterate);
       out_.steps += kr.steps;
       out_.krylov_iterations += kr.iterations;
       out_.krylov_residual = kr.residual;
       // verification: a fresh monitor, a baseline measure, then plain checks
-      out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(opt_.precision, 1.0 - pol.decay_hint));
+      out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(pol.precision, 1.0 - pol.decay_hint));
       reset_latches();
       std::vector<Residual> ignore;
       solver_.measure(ignore);
@@ -137,13 +137,13 @@ class BatchRunner {
     const BakeProgress ev{&mp_, solutions_, out_.steps, planned, worst, secs, worst_max};
     observer_.progress(ev);
     observer_.inspect(ev, solver_, true);
-    throw_if_cancelled(opt_.cancel);
+    ctx_.check_cancelled();
     return all_latched;
   }
 
   const ModelPlan& mp_;
   LatticeSolver& solver_;
-  const BakeOptions& opt_;
+  const RunContext& ctx_;
   BakeObserver& observer_;
   std::vector<const SolutionPlan*> solutions_;
   BatchOutcome out_;
@@ -244,13 +244,13 @@ int balanced_batch(int total, int capacity, int channels) {
 // Krylov solves take one system at a time (their vectors belong to system 0).
 int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
   const Dims& d = mp.lattice.dims;
-  const std::size_t per_system = backend.bytes_per_system(d, opt.precision);
+  const std::size_t per_system = backend.bytes_per_system(d, mp.steps.precision);
   const std::size_t fixed = backend.bytes_per_lattice(d);
   const std::size_t avail = backend.available_bytes();
   const int channels = std::max(1, static_cast<int>(mp.channels.size()));
   const int total = static_cast<int>(mp.systems());
   const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
-  int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, opt.precision, total);
+  int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, mp.steps.precision, total);
   want = krylov ? 1 : std::max(1, std::min(want, total));
   // A backend's own choice covers at least one whole solution (its channels share the launch).
   if (!krylov && opt.max_systems <= 0) want = std::max(want, std::min(channels, total));
@@ -272,42 +272,81 @@ int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOption
   return balanced_batch(total, want, channels);
 }
 
-void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer) {
+namespace {
+
+// Per solution, what its channels have produced so far: channels may run in separate batches
+// when memory is short or a Krylov solver takes one system at a time. `result` holds the worst
+// estimate and the most steps over the channels so far, and their share of the batches' time.
+struct PartialSolution {
+  SolutionResult result;
+  std::vector<std::vector<float>> per_channel;
+  int channels_done = 0;
+};
+
+// The systems a model solves (each solution that is not derived, in each distinct channel), in
+// solution order.
+std::vector<SystemRef> system_queue(const ModelPlan& mp) {
+  std::vector<SystemRef> queue;
+  for (int s = 0; s < static_cast<int>(mp.solutions.size()); ++s)
+    if (!mp.solutions[static_cast<std::size_t>(s)].derived)
+      for (int c = 0; c < static_cast<int>(mp.channels.size()); ++c) queue.push_back({s, c});
+  return queue;
+}
+
+// The end of the batch that starts at `start`: up to `capacity` systems, but never a solution's
+// channels split across two batches when they fit in one.
+std::size_t batch_end(const std::vector<SystemRef>& queue, std::size_t start, int capacity, int channels) {
+  std::size_t end = std::min(queue.size(), start + static_cast<std::size_t>(capacity));
+  if (end < queue.size() && channels <= capacity)
+    while (end > start + 1 && queue[end].solution == queue[end - 1].solution) --end;
+  return end;
+}
+
+// Adds system s of a finished batch (its channel's totals, estimate and time share) to its solution.
+void add_channel(PartialSolution& p, const BatchOutcome& outcome, std::size_t s, double seconds,
+                 std::vector<float> totals, int channel) {
+  SolutionResult& r = p.result;
+  p.per_channel[static_cast<std::size_t>(channel)] = std::move(totals);
+  ++p.channels_done;
+  r.iterations = std::max(r.iterations, outcome.steps);
+  r.krylov_iterations = std::max(r.krylov_iterations, outcome.krylov_iterations);
+  r.krylov_residual = std::max(r.krylov_residual, outcome.krylov_residual);
+  r.seconds += seconds;
+  const double estimate = std::min(outcome.monitors[s].error_estimate(), outcome.latched[s]);
+  if (r.history.empty() || estimate >= r.error_estimate) r.history = outcome.worst_history;
+  r.error_estimate = std::max(r.error_estimate, estimate);
+  r.error_estimate_max =
+      std::max(r.error_estimate_max, std::min(outcome.monitors[s].error_estimate_max(), outcome.latched_max[s]));
+  r.converged = r.converged && outcome.converged;
+}
+
+}  // namespace
+
+void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer,
+                const RunContext& ctx) {
   if (mp.steps.method == SolverMethod::BiCGStab && mp.steps.mode != IterationMode::Auto)
     throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate)");
   const int capacity = batch_capacity(mp, backend, opt);
   SolverOptions so;
-  so.precision = opt.precision;
+  so.precision = mp.steps.precision;
   so.max_systems = capacity;
   auto solver = backend.create(mp.lattice, mp.channels, so);
   if (mp.steps.method == SolverMethod::BiCGStab) krylov_vectors_of(*solver, backend.name());  // offered, or stop here
   observer.model_started(mp, backend, solver->bytes_in_use());
 
-  std::vector<SystemRef> queue;
-  for (int s = 0; s < static_cast<int>(mp.solutions.size()); ++s)
-    if (!mp.solutions[static_cast<std::size_t>(s)].derived)
-      for (int c = 0; c < static_cast<int>(mp.channels.size()); ++c) queue.push_back({s, c});
-  AmbientSum ambient(mp);
-
-  // Per solution, what its channels have produced so far (channels may run in separate batches
-  // when memory is short or a Krylov solver takes one system at a time).
-  struct Pending {
-    std::vector<std::vector<float>> per_channel;
-    int channels_done = 0, iterations = 0, krylov_iterations = 0;
-    double seconds = 0, error_estimate = 0, error_estimate_max = 0, krylov_residual = 0;
-    bool converged = true;
-    std::vector<CheckPoint> history;
-  };
-  std::vector<Pending> pending(mp.solutions.size());
-  for (Pending& p : pending) p.per_channel.resize(mp.channels.size());
-  const std::size_t count = mp.lattice.dims.count();
+  const std::vector<SystemRef> queue = system_queue(mp);
+  const int channels = static_cast<int>(mp.channels.size());
   const bool fixed = mp.steps.mode != IterationMode::Auto;
+  AmbientSum ambient(mp);
+  std::vector<PartialSolution> partial(mp.solutions.size());
+  for (std::size_t s = 0; s < partial.size(); ++s) {
+    partial[s].result.plan = mp.solutions[s];
+    partial[s].result.converged = true;  // until a channel does not
+    partial[s].per_channel.resize(mp.channels.size());
+  }
 
   for (std::size_t start = 0; start < queue.size();) {
-    // Fill the batch, but never split a solution's channels across two batches when they fit.
-    std::size_t end = std::min(queue.size(), start + static_cast<std::size_t>(capacity));
-    if (end < queue.size() && static_cast<int>(mp.channels.size()) <= capacity)
-      while (end > start + 1 && queue[end].solution == queue[end - 1].solution) --end;
+    const std::size_t end = batch_end(queue, start, capacity, channels);
     std::vector<SystemSpec> batch;
     std::vector<const SolutionPlan*> batch_solutions;
     for (std::size_t q = start; q < end; ++q) {
@@ -317,42 +356,23 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     }
 
     solver->reset(batch);
-    BatchRunner runner(mp, *solver, opt, observer, batch_solutions, batch.size());
-    BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov() : runner.plain();
+    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size());
+    const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov() : runner.plain();
     const double batch_seconds = runner.seconds();
     observer.memory_in_use(mp, solver->bytes_in_use());
 
     // Collect each system's totals; a solution is done once all its channels are.
     for (std::size_t s = 0; s < batch.size(); ++s) {
-      const int sol = queue[start + s].solution;
-      Pending& p = pending[static_cast<std::size_t>(sol)];
-      auto& buf = p.per_channel[static_cast<std::size_t>(batch[s].channel)];
-      buf.resize(count);
-      solver->read_totals(static_cast<int>(s), buf.data());
-      ++p.channels_done;
-      p.iterations = std::max(p.iterations, outcome.steps);
-      p.krylov_iterations = std::max(p.krylov_iterations, outcome.krylov_iterations);
-      p.krylov_residual = std::max(p.krylov_residual, outcome.krylov_residual);
-      p.seconds += batch_seconds / static_cast<double>(batch.size());
-      const double estimate = std::min(outcome.monitors[s].error_estimate(), outcome.latched[s]);
-      if (p.history.empty() || estimate >= p.error_estimate) p.history = outcome.worst_history;
-      p.error_estimate = std::max(p.error_estimate, estimate);
-      p.error_estimate_max =
-          std::max(p.error_estimate_max, std::min(outcome.monitors[s].error_estimate_max(), outcome.latched_max[s]));
-      p.converged = p.converged && outcome.converged;
-      if (p.channels_done < static_cast<int>(mp.channels.size())) continue;
-      SolutionResult r;
-      r.plan = mp.solutions[static_cast<std::size_t>(sol)];
-      r.iterations = p.iterations;
-      r.seconds = p.seconds;
-      r.error_estimate = p.error_estimate;
-      r.error_estimate_max = p.error_estimate_max;
-      r.converged = !fixed && p.converged;
-      r.krylov_iterations = p.krylov_iterations;
-      r.krylov_residual = p.krylov_residual;
-      r.history = std::move(p.history);
+      PartialSolution& p = partial[static_cast<std::size_t>(queue[start + s].solution)];
+      std::vector<float> totals(mp.lattice.dims.count());
+      solver->read_totals(static_cast<int>(s), totals.data());
+      add_channel(p, outcome, s, batch_seconds / static_cast<double>(batch.size()), std::move(totals),
+                  batch[s].channel);
+      if (p.channels_done < channels) continue;
+      SolutionResult r = std::move(p.result);
+      r.converged = !fixed && r.converged;
       for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
-      p = Pending{};
+      p = PartialSolution{};
       ambient.add(r);
       observer.solution_done(mp, r);
     }

@@ -3,10 +3,10 @@
 #pragma once
 
 #include <array>
-#include <atomic>
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
 #include "lblight/solve/convergence.h"
 #include "lblight/solve/plan.h"
 
@@ -56,9 +56,7 @@ class BakeObserver {
 };
 
 struct BakeOptions {
-  Precision precision = Precision::Float32;
-  int max_systems = 0;                        // per batch; 0 = as memory allows
-  const std::atomic<bool>* cancel = nullptr;  // checked between step chunks
+  int max_systems = 0;  // per batch; 0 = as memory allows
 };
 
 // Systems per batch for `model` on `backend`: the backend's preference (or options.max_systems),
@@ -69,6 +67,10 @@ int batch_capacity(const ModelPlan& model, const Backend& backend, const BakeOpt
 // `channels` when `capacity` is: 57 systems at capacity 18 run as 15+15+15+12.
 int balanced_batch(int total, int capacity, int channels);
 
-void bake_model(const ModelPlan& model, const Backend& backend, const BakeOptions& options, BakeObserver& observer);
+// Solves every solution of `model` in its plan's precision (model.steps.precision) and hands each
+// to the observer as its last channel finishes. Stops with Error(Cancelled) at the next check once
+// ctx.cancel is set.
+void bake_model(const ModelPlan& model, const Backend& backend, const BakeOptions& options, BakeObserver& observer,
+                const RunContext& ctx = {});
 
 }  // namespace lblight

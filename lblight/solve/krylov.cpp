@@ -18,7 +18,7 @@ KrylovVectors& krylov_vectors_of(LatticeSolver& solver, const std::string& backe
   return *v;
 }
 
-KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const std::atomic<bool>* cancel,
+KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const RunContext& ctx,
                       const KrylovProgress& progress) {
   KrylovResult out;
   s.vectors_reserve(kCount);
@@ -44,7 +44,7 @@ KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const s
   double rho = 1, alpha = 1, omega = 1;
   bool restart = true;
   while (rnorm / bnorm > tolerance && out.steps + 2 <= max_steps) {
-    throw_if_cancelled(cancel);
+    ctx.check_cancelled();
     if (restart) {  // (re)start with the shadow residual equal to the residual
       s.vector_axpby(1.0, kR, 0.0, kRhat);
       s.vector_axpby(0.0, kR, 0.0, kP);

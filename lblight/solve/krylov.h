@@ -4,11 +4,11 @@
 // solves system 0 of the solver's current batch and leaves the solution as that system's state.
 #pragma once
 
-#include <atomic>
 #include <functional>
 #include <string>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
 
 namespace lblight {
 
@@ -28,7 +28,7 @@ using KrylovProgress = std::function<void(const KrylovResult&)>;
 // The Krylov part of `solver` (backend.h); Error(Unavailable) naming `backend` when it has none.
 KrylovVectors& krylov_vectors_of(LatticeSolver& solver, const std::string& backend);
 
-KrylovResult bicgstab(KrylovVectors& vectors, double tolerance, int max_steps,
-                      const std::atomic<bool>* cancel = nullptr, const KrylovProgress& progress = {});
+KrylovResult bicgstab(KrylovVectors& vectors, double tolerance, int max_steps, const RunContext& ctx = {},
+                      const KrylovProgress& progress = {});
 
 }  // namespace lblight

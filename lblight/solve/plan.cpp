@@ -128,7 +128,7 @@ bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int coun
 
 }  // namespace
 
-BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
+BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
   BakePlan plan;
   plan.scene = &scene;
   plan.precision = ov.precision.value_or(scene.solver.precision);
@@ -136,7 +136,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
   for (const ModelSpec& spec : scene.models) {
     ModelPlan mp;
     mp.spec = &spec;
-    mp.grid = load_model_grid(spec, scene, ov.cancel);
+    mp.grid = load_model_grid(spec, scene, ctx);
     mp.stats = check_stability(spec, mp.grid, scene, plan.warnings);
     const Dims full = mp.grid.dims;
     mp.savings.full_lattice = {full.nx + 2 * spec.margin, full.ny + 2 * spec.margin, full.nz + 2 * spec.margin};
@@ -202,6 +202,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov) {
     StepPolicy& st = mp.steps;
     st.mode = ov.mode.value_or(scene.solver.mode);
     st.method = ov.method.value_or(scene.solver.method);
+    st.precision = plan.precision;
     if (st.method == SolverMethod::BiCGStab && st.mode != IterationMode::Auto)
       throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate), not " +
                         std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +

@@ -4,12 +4,12 @@
 #pragma once
 
 #include <array>
-#include <atomic>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
 #include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
 #include "lblight/scene/validate.h"
@@ -27,7 +27,6 @@ struct PlanOverrides {
   std::optional<double> tolerance;            // --tolerance
   std::optional<Precision> precision;
   std::optional<SolverMethod> method;         // --method
-  const std::atomic<bool>* cancel = nullptr;  // loading and voxelising the models stop once set
 };
 
 struct SolutionPlan {
@@ -56,6 +55,7 @@ struct StepPolicy {
   int max_steps = 0;        // Auto: give up (not converged) after this many
   int check_interval = 16;  // steps between convergence measurements
   double tolerance = 1e-4;
+  Precision precision = Precision::Float32;  // the state's storage, as BakePlan::precision
   double decay_hint = 0;    // rough slowest decay per step (diffusion + absorption), for the
                             // rounding floor before the iteration shows its own (convergence.h)
 };
@@ -78,13 +78,14 @@ struct ModelPlan {
 
 struct BakePlan {
   const Scene* scene = nullptr;
-  Precision precision = Precision::Float32;
+  Precision precision = Precision::Float32;  // resolved once here (override, else the scene's)
   std::vector<ModelPlan> models;
   std::vector<std::string> warnings;
 };
 
-// Loads every model's grid, validates it (spec sec. 6) and lays out the work.
-BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {});
+// Loads every model's grid, validates it (spec sec. 6) and lays out the work. Loading and
+// voxelising stop with Error(Cancelled) once ctx.cancel is set.
+BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {}, const RunContext& ctx = {});
 
 // The grid cut to the box of its occupied nodes (unchanged when empty or already tight). Index
 // coordinates and the transform are kept, so the interior of the smaller lattice sees exactly the

@@ -32,7 +32,7 @@ ModelPlan single(const ModelPlan& mp, const SolutionPlan& sol, int distinct_chan
 // float64 on the CPU: BiCGStab to a tiny residual, then plain checks until the estimate is below
 // the reference tolerance. Totals in double (from the raw state).
 std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, double tolerance,
-                                     const std::atomic<bool>* cancel, ReportReference& info) {
+                                     const RunContext& ctx, ReportReference& info) {
   const auto t0 = Clock::now();
   auto solver = cpu.create(sub.lattice, sub.channels, {Precision::Float64, 1, StoreMode::Auto});
   solver->reset({{0, sub.solutions[0].boundary}});
@@ -41,7 +41,7 @@ std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, d
   double residual = 1e-10;
   const int k = sub.steps.check_interval;
   for (int round = 0; round < 6; ++round) {
-    info.steps += bicgstab(krylov_vectors_of(*solver, cpu.name()), residual, 400 * sub.lattice.dims.longest(), cancel).steps;
+    info.steps += bicgstab(krylov_vectors_of(*solver, cpu.name()), residual, 400 * sub.lattice.dims.longest(), ctx).steps;
     monitor = ConvergenceMonitor(Precision::Float64);
     solver->measure(r);
     for (int c = 0; c < 6; ++c) {
@@ -145,7 +145,7 @@ int slowest_channel(const ModelPlan& mp) {
 }  // namespace
 
 Report make_report(const BakePlan& plan, const Backend& backend, const Backend& reference_backend,
-                   const ReportOptions& opt, const std::function<void(const std::string&)>& log) {
+                   const ReportOptions& opt, const RunContext& ctx) {
   if (!reference_backend.supports(Precision::Float64))
     throw Error(ErrorCategory::Unavailable, "the reference backend must store float64 (use the cpu backend)");
   for (const ReportRunSpec& run : opt.runs)  // before any solving: the references take a while
@@ -165,10 +165,10 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
     for (const SolutionPlan* sol : chosen) {
       ModelPlan sub = single(mp, *sol, distinct);
       ReportReference ref{mp.spec->name, sol->grid_name, kChannelNames[colour]};
-      log("model '" + mp.spec->name + "' " + sol->grid_name + " (" + kChannelNames[colour] +
+      ctx.report("model '" + mp.spec->name + "' " + sol->grid_name + " (" + kChannelNames[colour] +
           "): float64 reference on the CPU");
       const std::vector<double> truth =
-          reference_totals(sub, reference_backend, opt.reference_tolerance, opt.cancel, ref);
+          reference_totals(sub, reference_backend, opt.reference_tolerance, ctx, ref);
       report.references.push_back(ref);
       for (const ReportRunSpec& run : opt.runs) {
         ReportCurve curve;
@@ -176,16 +176,14 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
         curve.solution = sol->grid_name;
         curve.channel = kChannelNames[colour];
         curve.run = run.label() + " " + backend.name();
-        log("  run: " + curve.run);
+        ctx.report("  run: " + curve.run);
         ModelPlan r = sub;
         r.steps.mode = IterationMode::Auto;
         r.steps.method = run.method;
         r.steps.tolerance = mp.steps.tolerance / opt.depth;
+        r.steps.precision = run.precision;
         CurveRecorder recorder(truth, curve);
-        BakeOptions bo;
-        bo.precision = run.precision;
-        bo.cancel = opt.cancel;
-        bake_model(r, backend, bo, recorder);
+        bake_model(r, backend, {}, recorder, ctx);
         summarise(curve, mp.steps.tolerance);
         report.curves.push_back(std::move(curve));
       }

@@ -2,13 +2,11 @@
 // check, with a converged float64 reference, next to the solver's own error estimate.
 #pragma once
 
-#include <atomic>
-
-#include <functional>
 #include <string>
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
 #include "lblight/solve/plan.h"
 
 namespace lblight {
@@ -25,7 +23,6 @@ struct ReportOptions {
   int channel = -1;                  // colour channel; -1 = the one with the highest albedo (slowest)
   double reference_tolerance = 1e-8;
   double depth = 20.0;               // runs continue to tolerance / depth to show the curve below it
-  const std::atomic<bool>* cancel = nullptr;  // checked between steps: Error(Cancelled) when set
 };
 
 struct ReportPoint {
@@ -61,7 +58,8 @@ struct Report {
 };
 
 // `backend` runs the curves; `reference_backend` (float64, i.e. the CPU) computes the reference.
+// Each reference and run is announced through ctx.progress; Error(Cancelled) once ctx.cancel is set.
 Report make_report(const BakePlan& plan, const Backend& backend, const Backend& reference_backend,
-                   const ReportOptions& options, const std::function<void(const std::string&)>& log);
+                   const ReportOptions& options, const RunContext& ctx = {});
 
 }  // namespace lblight

@@ -22,10 +22,10 @@
 
 #include "backends/cuda/lb_device.h"
 #include "lblight/core/error.h"
-#include "lblight/pipeline/bake_output.h"
+#include "lblight/io/output_dir.h"
+#include "lblight/pipeline/run_bake.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/sun.h"
-#include "lblight/solve/bake.h"
 
 using namespace lblight;
 using Clock = std::chrono::steady_clock;
@@ -169,18 +169,13 @@ class SimBackend final : public Backend {
   const Reference& ref_;
 };
 
-// Hands each solution to the output and remembers when the last one arrived.
-class Forward final : public BakeObserver {
+// Remembers when the last solution arrived (run_bake writes it).
+class LastSolution final : public BakeObserver {
  public:
-  explicit Forward(BakeOutput& out) : out_(out) {}
-  void solution_done(const ModelPlan& mp, SolutionResult& r) override {
-    out_.add(mp, r);
-    last_ = Clock::now();
-  }
+  void solution_done(const ModelPlan&, SolutionResult&) override { last_ = Clock::now(); }
   Clock::time_point last() const { return last_; }
 
  private:
-  BakeOutput& out_;
   Clock::time_point last_ = Clock::now();
 };
 
@@ -191,7 +186,9 @@ int run(const std::string& scene_file, const std::string& reference, const std::
   StagedDirectory::check_target(output, OutputKind::Bake);
   Reference ref;
   auto starting = std::async(std::launch::async, [&] { return std::make_unique<SimBackend>(m, ref); });
-  const BakePlan plan = make_plan(scene);
+  PlanOverrides ov;
+  ov.precision = precision;
+  const BakePlan plan = make_plan(scene, ov);
   auto backend = starting.get();
   const double ready = since(t0);
   for (const ModelPlan& mp : plan.models)
@@ -208,17 +205,9 @@ int run(const std::string& scene_file, const std::string& reference, const std::
   const auto t1 = Clock::now();
   const double not_counted = std::chrono::duration<double>(t1 - t0).count() - ready;
 
-  BakeOutput out(plan, output, {"gpu_pipeline_sim", backend->name(), backend->description(), precision},
-                 /*write_in_background=*/true);
-  Forward fwd(out);
-  BakeOptions opt;
-  opt.precision = precision;
-  for (const ModelPlan& mp : plan.models) {
-    bake_model(mp, *backend, opt, fwd);
-    out.finish_model(mp);
-  }
-  const double solved = std::chrono::duration<double>(fwd.last() - t1).count();
-  out.commit(ready + since(t1));
+  LastSolution last;
+  run_bake(plan, *backend, output, "gpu_pipeline_sim", last, {}, ready);
+  const double solved = std::chrono::duration<double>(last.last() - t1).count();
   const double wall = ready + since(t1);
   std::printf("start-up and plan (overlapped)   %7.3f s\n", ready);
   std::printf("device time queued              %7.3f s (%s)\n", backend->kernel_seconds,

@@ -1,0 +1,57 @@
+#include "lblight/pipeline/run_bake.h"
+
+#include <chrono>
+
+#include "lblight/pipeline/bake_output.h"
+
+namespace lblight {
+namespace {
+
+// Hands every event to the caller's observer, then each solution (and the memory figures) to the
+// output.
+class WriteEachSolution final : public BakeObserver {
+ public:
+  WriteEachSolution(BakeOutput& out, BakeObserver& next) : out_(out), next_(next) {}
+  void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) override {
+    next_.model_started(mp, backend, bytes);
+    out_.set_peak_bytes(mp, bytes);
+  }
+  void memory_in_use(const ModelPlan& mp, std::size_t bytes) override {
+    next_.memory_in_use(mp, bytes);
+    out_.set_peak_bytes(mp, bytes);
+  }
+  void progress(const BakeProgress& p) override { next_.progress(p); }
+  void solution_done(const ModelPlan& mp, SolutionResult& r) override {
+    next_.solution_done(mp, r);
+    out_.add(mp, r);
+  }
+  bool wants_iterates() const override { return next_.wants_iterates(); }
+  void inspect(const BakeProgress& p, LatticeSolver& solver, bool measured) override {
+    next_.inspect(p, solver, measured);
+  }
+
+ private:
+  BakeOutput& out_;
+  BakeObserver& next_;
+};
+
+}  // namespace
+
+nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std::filesystem::path& target,
+                        const std::string& command_line, BakeObserver& observer, const RunContext& ctx,
+                        double seconds_before) {
+  const auto t0 = std::chrono::steady_clock::now();
+  // On a GPU the host waits on the device: convert and write each solution while the next solves.
+  BakeOutput output(plan, target, {command_line, backend.name(), backend.description()},
+                    /*write_in_background=*/!backend.occupies_host_cores());
+  WriteEachSolution writer(output, observer);
+  for (const ModelPlan& mp : plan.models) {
+    bake_model(mp, backend, {}, writer, ctx);
+    output.finish_model(mp);
+  }
+  ctx.check_cancelled();  // a signal during the last model's output: nothing goes into place
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return output.commit(seconds_before + seconds);
+}
+
+}  // namespace lblight

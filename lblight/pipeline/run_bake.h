@@ -1,0 +1,28 @@
+// The whole bake, from a plan to files on disk: what `lblight bake` and tools/gpu_pipeline_sim
+// both run.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
+#include "lblight/solve/bake.h"
+#include "lblight/solve/plan.h"
+
+namespace lblight {
+
+// Solves every model of `plan` on `backend` (bake_model) and writes it into `target` through a
+// BakeOutput: staged, so the folder appears complete or not at all. Each solution is written as it
+// arrives, on a thread of its own when the backend leaves the host's cores free (a GPU), so the
+// output overlaps the solve; the manifest comes last and is returned. `observer` sees every event
+// first (progress logs, summaries) and must leave the solutions' totals in place.
+// seconds_before: time already spent on the run (loading, planning), counted in the manifest's
+// total_seconds. Error(Cancelled) once ctx.cancel is set, leaving nothing behind.
+nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std::filesystem::path& target,
+                        const std::string& command_line, BakeObserver& observer, const RunContext& ctx = {},
+                        double seconds_before = 0);
+
+}  // namespace lblight

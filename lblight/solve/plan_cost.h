@@ -1,0 +1,28 @@
+// What a model's plan will cost on a backend, before any solving: memory (by bake's own batch
+// rule, batch_capacity) and lattice updates. `validate` prints it; a scheduler could size jobs
+// with it.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "lblight/backend/backend.h"
+#include "lblight/solve/plan.h"
+
+namespace lblight {
+
+struct PlanCost {
+  int batch_systems = 0;            // systems per batch, as bake_model will run them
+  std::size_t bytes_per_system = 0;
+  std::size_t device_bytes = 0;     // the lattice plus one batch on the backend's device
+  double host_result_bytes = 0;     // every solution's totals (3 channels of float) on the host
+  double updates = 0;               // systems x estimated steps x interior nodes
+  bool fits = true;                 // false: not even one system fits the device's free memory
+  std::string why_not;              // batch_capacity's message when it does not fit
+  // Wall time at `updates_per_second` (0 when that is not known).
+  double seconds(double updates_per_second) const { return updates_per_second > 0 ? updates / updates_per_second : 0; }
+};
+
+PlanCost plan_cost(const ModelPlan& model, const Backend& backend);
+
+}  // namespace lblight
