@@ -12,14 +12,12 @@
 #include "backends/openmp/openmp_backend.h"
 
 #include <omp.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <stdexcept>
 #include <string>
 
@@ -108,28 +106,6 @@ inline void stream_fence() {
 #endif
 }
 
-// The L3 that CPU 0 shares with its neighbours, from sysfs: glibc's sysconf reports the whole
-// package's L3 on AMD (384 MiB on a 12-CCD EPYC, of which a core reaches 32 MiB).
-std::size_t last_level_cache_bytes() {
-  for (int index = 0; index < 8; ++index) {
-    const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/";
-    std::ifstream level(dir + "level"), size(dir + "size");
-    int l = 0;
-    std::string text;
-    if (!(level >> l) || !(size >> text)) break;
-    if (l != 3 || text.empty()) continue;
-    const char unit = text.back();
-    const std::size_t n = std::strtoull(text.c_str(), nullptr, 10);
-    const std::size_t scale = unit == 'K' ? 1024u : unit == 'M' ? (1u << 20) : 1u;
-    if (n > 0) return n * scale;
-  }
-  long l3 = -1;
-#ifdef _SC_LEVEL3_CACHE_SIZE
-  l3 = sysconf(_SC_LEVEL3_CACHE_SIZE);
-#endif
-  return l3 > 0 ? static_cast<std::size_t>(l3) : (32u << 20);
-}
-
 template <typename Real>
 class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess {
   // One SIMD chunk = one cache line of one direction array.
@@ -194,7 +170,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     cur_ = 0;
     const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Real);
     stream_ = stores_ == StoreMode::Streaming ||
-              (stores_ == StoreMode::Auto && state_bytes > 2.0 * static_cast<double>(last_level_cache_bytes()));
+              (stores_ == StoreMode::Auto && state_bytes > 2.0 * static_cast<double>(host_last_level_cache_bytes()));
   }
 
   void step(int steps) override {
@@ -624,7 +600,7 @@ class OpenMpBackend final : public Backend {
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return host_available_memory_bytes(); }
-  std::size_t cache_bytes() const override { return last_level_cache_bytes(); }
+  std::size_t cache_bytes() const override { return host_last_level_cache_bytes(); }
   int preferred_batch(const Dims&, Precision, int total_systems) const override { return std::min(total_systems, 3); }
 
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,

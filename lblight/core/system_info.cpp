@@ -1,5 +1,8 @@
 #include "lblight/core/system_info.h"
 
+#include <unistd.h>
+
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -27,6 +30,26 @@ std::string host_cpu_model() {
     }
   }
   return "unknown CPU";
+}
+
+std::size_t host_last_level_cache_bytes() {
+  for (int index = 0; index < 8; ++index) {
+    const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/";
+    std::ifstream level(dir + "level"), size(dir + "size");
+    int l = 0;
+    std::string text;
+    if (!(level >> l) || !(size >> text)) break;
+    if (l != 3 || text.empty()) continue;
+    const char unit = text.back();
+    const std::size_t n = std::strtoull(text.c_str(), nullptr, 10);
+    const std::size_t scale = unit == 'K' ? 1024u : unit == 'M' ? (1u << 20) : 1u;
+    if (n > 0) return n * scale;
+  }
+  long l3 = -1;
+#ifdef _SC_LEVEL3_CACHE_SIZE
+  l3 = sysconf(_SC_LEVEL3_CACHE_SIZE);
+#endif
+  return l3 > 0 ? static_cast<std::size_t>(l3) : (32u << 20);
 }
 
 }  // namespace lblight

@@ -67,6 +67,78 @@ constexpr std::uint32_t kMaxSolutions = 4096;
 constexpr int kBlockStride = 3;                    // nodes per sub-block and axis (own nodes)
 constexpr int kBlockEdge = 4;                      // values per sub-block and axis (with the forward border)
 
+// ------------------------------------------------------------------------------------------------
+// Byte layout of the header and of a solution-table entry (docs/lbh-format.md secs. 2.1, 2.2),
+// defined once: the reader here and lblight's writer (lblight/compress/lbh_writer.cpp) address
+// every field through these names. The static_asserts check that the fields tile each record.
+struct Field {
+  std::uint32_t offset, bytes;
+  constexpr std::uint32_t end() const { return offset + bytes; }
+};
+namespace header_field {
+constexpr Field kMagic{0, 8};            // 89 'L' 'B' 'H' 0D 0A 1A 0A
+constexpr Field kVersion{8, 4};          // u32: 1 or 2
+constexpr Field kEndianTag{12, 4};       // u32: 0x01020304
+constexpr Field kHeaderBytes{16, 4};     // u32: 256
+constexpr Field kEntryBytes{20, 4};      // u32: 128
+constexpr Field kFileBytes{24, 8};       // u64: the whole file
+constexpr Field kSolutionCount{32, 4};   // u32
+constexpr Field kFlags{36, 4};           // u32: 0
+constexpr Field kDims{40, 12};           // i32[3]
+constexpr Field kIndexMin{52, 12};       // i32[3]
+constexpr Field kBlocks{64, 12};         // u32[3]: sub-blocks per axis
+constexpr Field kReserved1{76, 4};       // u32: 0
+constexpr Field kIndexToWorld{80, 128};  // f64[16], row-major
+constexpr Field kTableOffset{208, 8};    // u64: 256
+constexpr Field kTableCrc{216, 4};       // u32: CRC-32 of the solution table
+constexpr Field kReserved2{220, 32};     // 0
+constexpr Field kHeaderCrc{252, 4};      // u32: CRC-32 of bytes 0..251
+constexpr Field kAll[] = {kMagic,     kVersion,  kEndianTag,    kHeaderBytes, kEntryBytes, kFileBytes,
+                          kSolutionCount, kFlags, kDims,         kIndexMin,    kBlocks,     kReserved1,
+                          kIndexToWorld, kTableOffset, kTableCrc, kReserved2,   kHeaderCrc};
+}  // namespace header_field
+namespace entry_field {
+constexpr Field kName{0, 16};             // printable ASCII, NUL-padded
+constexpr Field kIndex{16, 4};            // i32: base solution 0..18, -1 otherwise
+constexpr Field kDirection{20, 12};       // i32[3], each -1..1
+constexpr Field kThresholdMode{32, 4};    // u32: 0 absolute, 1 relative
+constexpr Field kThresholdParam{36, 4};   // f32: as requested
+constexpr Field kThreshold{40, 4};        // f32: absolute, as applied
+constexpr Field kMaxAbsValue{44, 4};      // f32
+constexpr Field kBlockCount{48, 8};       // u64
+constexpr Field kCoeffCount{56, 8};       // u64
+constexpr Field kMasksOffset{64, 8};      // u64
+constexpr Field kOffsetsOffset{72, 8};    // u64
+constexpr Field kCoeffsOffset{80, 8};     // u64 (Q8: the averages)
+constexpr Field kMasksCrc{88, 4};         // u32
+constexpr Field kOffsetsCrc{92, 4};       // u32
+constexpr Field kCoeffsCrc{96, 4};        // u32
+constexpr Field kEncoding{100, 4};        // u32: 0 f32, 1 8-bit details (version 2)
+constexpr Field kFastBlocks{104, 8};      // u64
+constexpr Field kMaxAbsError{112, 4};     // f32 (informational)
+constexpr Field kRmsError{116, 4};        // f32 (informational)
+constexpr Field kQuantStep{120, 4};       // f32: Q8 step; 0 for f32
+constexpr Field kDetailsCrc{124, 4};      // u32: Q8 details; 0 for f32
+constexpr Field kAll[] = {kName,         kIndex,        kDirection,    kThresholdMode, kThresholdParam, kThreshold,
+                          kMaxAbsValue,  kBlockCount,   kCoeffCount,   kMasksOffset,   kOffsetsOffset,  kCoeffsOffset,
+                          kMasksCrc,     kOffsetsCrc,   kCoeffsCrc,    kEncoding,      kFastBlocks,     kMaxAbsError,
+                          kRmsError,     kQuantStep,    kDetailsCrc};
+}  // namespace entry_field
+namespace detail {
+template <std::size_t N>
+constexpr bool tiles(const Field (&fields)[N], std::uint32_t total) {
+  std::uint32_t at = 0;
+  for (const Field& f : fields) {
+    if (f.offset != at) return false;
+    at = f.end();
+  }
+  return at == total;
+}
+}  // namespace detail
+static_assert(detail::tiles(header_field::kAll, kHeaderBytes), "header fields must tile its 256 bytes in order");
+static_assert(detail::tiles(entry_field::kAll, kEntryBytes), "entry fields must tile its 128 bytes in order");
+static_assert(header_field::kHeaderCrc.end() == kHeaderBytes, "the header CRC covers everything before it");
+
 struct Rgb {
   float r, g, b;
 };
@@ -744,40 +816,74 @@ class Stream {
     return s;
   }
 
+  // Checks the whole file before anything is read from it: header, solution table, section
+  // layout, checksums, then what masks and offsets mean.
   Status validate() {
+    std::uint64_t table_end = 0;
+    if (const Status st = validate_header(table_end); st != Status::Ok) return st;
+    std::uint64_t pos = table_end;
+    infos_.resize(header_.solution_count);
+    for (std::uint32_t s = 0; s < header_.solution_count; ++s)
+      if (const Status st = read_entry(s, pos); st != Status::Ok) return st;
+    if (pos != header_.file_bytes)
+      return fail(Status::BadHeader, "the last section ends at " + std::to_string(pos) + " but the file at " +
+                                         std::to_string(header_.file_bytes));
+    for (std::uint32_t s = 0; s < header_.solution_count; ++s)
+      if (const Status st = check_sections(s); st != Status::Ok) return st;
+    for (int a = 0; a < 3; ++a) {
+      lattice_.n[a] = header_.dims[a];
+      lattice_.nb[a] = static_cast<std::int32_t>(header_.blocks[a]);
+      lattice_.index_min[a] = header_.index_min[a];
+    }
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c)
+        lattice_.world_to_index[4 * r + c] = static_cast<float>(header_.world_to_index[4 * r + c]);
+    ok_ = true;
+    status_ = Status::Ok;
+    error_.clear();
+    return Status::Ok;
+  }
+
+  // The 256-byte header and the table's checksum; table_end: where the table ends.
+  Status validate_header(std::uint64_t& table_end) {
     using namespace detail;
+    namespace H = header_field;
     const unsigned char* p = data();
     static const unsigned char magic[8] = {0x89, 'L', 'B', 'H', 0x0D, 0x0A, 0x1A, 0x0A};
-    if (size_ < 8) return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes, less than the magic");
+    if (size_ < H::kMagic.end())
+      return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes, less than the magic");
     if (std::memcmp(p, magic, 8) != 0) return fail(Status::BadMagic, "the first 8 bytes are not 89 4C 42 48 0D 0A 1A 0A");
-    if (size_ < 16) return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes; the header has 256");
-    const std::uint32_t tag = rd32(p + 12);
+    if (size_ < H::kEndianTag.end())
+      return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes; the header has 256");
+    const std::uint32_t tag = rd32(p + H::kEndianTag.offset);
     if (tag == 0x04030201u) return fail(Status::UnsupportedEndianness, "the file is big-endian; .lbh is little-endian");
     if (tag != kEndianTag) return fail(Status::BadHeader, "endianness tag is not 0x01020304");
-    const std::uint32_t version = rd32(p + 8);
+    const std::uint32_t version = rd32(p + H::kVersion.offset);
     if (version < kOldestVersion || version > kVersion)
       return fail(Status::UnsupportedVersion, "format version " + std::to_string(version) + "; this reader reads versions " +
                                                   std::to_string(kOldestVersion) + ".." + std::to_string(kVersion));
     if (size_ < kHeaderBytes)
       return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes; the header alone has 256");
-    if (rd32(p + 16) != kHeaderBytes || rd32(p + 20) != kEntryBytes)
-      return fail(Status::BadHeader, "header size " + std::to_string(rd32(p + 16)) + " / entry size " +
-                                         std::to_string(rd32(p + 20)) + "; versions 1 and 2 have 256 / 128");
+    const std::uint32_t header_bytes = rd32(p + H::kHeaderBytes.offset), entry_bytes = rd32(p + H::kEntryBytes.offset);
+    if (header_bytes != kHeaderBytes || entry_bytes != kEntryBytes)
+      return fail(Status::BadHeader, "header size " + std::to_string(header_bytes) + " / entry size " +
+                                         std::to_string(entry_bytes) + "; versions 1 and 2 have 256 / 128");
     Header& h = header_;
     h.version = version;
-    h.file_bytes = rd64(p + 24);
+    h.file_bytes = rd64(p + H::kFileBytes.offset);
     if (h.file_bytes > size_)
       return fail(Status::Truncated, "file has " + std::to_string(size_) + " bytes but its header declares " +
                                          std::to_string(h.file_bytes));
     if (h.file_bytes < size_)
       return fail(Status::BadHeader, "file has " + std::to_string(size_ - h.file_bytes) +
                                          " bytes after the end its header declares (" + std::to_string(h.file_bytes) + ")");
-    h.solution_count = rd32(p + 32);
-    if (rd32(p + 36) != 0) return fail(Status::BadHeader, "flags are " + std::to_string(rd32(p + 36)) + "; must be 0");
+    h.solution_count = rd32(p + H::kSolutionCount.offset);
+    const std::uint32_t flags = rd32(p + H::kFlags.offset);
+    if (flags != 0) return fail(Status::BadHeader, "flags are " + std::to_string(flags) + "; must be 0");
     for (int a = 0; a < 3; ++a) {
-      h.dims[a] = rdi32(p + 40 + 4 * a);
-      h.index_min[a] = rdi32(p + 52 + 4 * a);
-      h.blocks[a] = rd32(p + 64 + 4 * a);
+      h.dims[a] = rdi32(p + H::kDims.offset + 4 * a);
+      h.index_min[a] = rdi32(p + H::kIndexMin.offset + 4 * a);
+      h.blocks[a] = rd32(p + H::kBlocks.offset + 4 * a);
     }
     for (int a = 0; a < 3; ++a) {
       if (h.dims[a] < 1 || h.dims[a] > kMaxDim)
@@ -790,172 +896,168 @@ class Stream {
       const std::int64_t hi = static_cast<std::int64_t>(h.index_min[a]) + h.dims[a] - 1;
       if (hi > INT32_MAX) return fail(Status::CountOutOfRange, "lattice box exceeds 32-bit index coordinates");
     }
-    if (rd32(p + 76) != 0) return fail(Status::BadHeader, "reserved field at offset 76 is not 0");
-    for (int e = 0; e < 16; ++e) h.index_to_world[e] = rdf64(p + 80 + 8 * e);
+    if (rd32(p + H::kReserved1.offset) != 0) return fail(Status::BadHeader, "reserved field at offset 76 is not 0");
+    for (int e = 0; e < 16; ++e) h.index_to_world[e] = rdf64(p + H::kIndexToWorld.offset + 8 * e);
     if (!invert_transform()) return fail(Status::BadHeader, "index_to_world is not a finite, invertible affine map");
     if (h.solution_count < 1 || h.solution_count > kMaxSolutions)
       return fail(Status::CountOutOfRange, "solution count " + std::to_string(h.solution_count) + " outside 1.." +
                                                std::to_string(kMaxSolutions));
-    const std::uint64_t table_offset = rd64(p + 208);
+    const std::uint64_t table_offset = rd64(p + H::kTableOffset.offset);
     if (table_offset != kHeaderBytes)
       return fail(Status::BadHeader, "table offset " + std::to_string(table_offset) + "; the format puts it at 256");
-    const std::uint64_t table_end = table_offset + static_cast<std::uint64_t>(h.solution_count) * kEntryBytes;
+    table_end = table_offset + static_cast<std::uint64_t>(h.solution_count) * kEntryBytes;
     if (table_end > h.file_bytes)
       return fail(Status::CountOutOfRange, "solution table of " + std::to_string(h.solution_count) +
                                                " entries ends at " + std::to_string(table_end) + ", past the file end " +
                                                std::to_string(h.file_bytes));
-    if (!all_zero(p + 220, 32)) return fail(Status::BadHeader, "reserved header bytes 220..251 are not 0");
-    if (kVerifyChecksums && crc32(p, 252) != rd32(p + 252)) return fail(Status::ChecksumMismatch, "header CRC-32 does not match");
-    if (kVerifyChecksums && crc32(p + table_offset, table_end - table_offset) != rd32(p + 216))
+    if (!all_zero(p + H::kReserved2.offset, H::kReserved2.bytes))
+      return fail(Status::BadHeader, "reserved header bytes 220..251 are not 0");
+    if (kVerifyChecksums && crc32(p, H::kHeaderCrc.offset) != rd32(p + H::kHeaderCrc.offset))
+      return fail(Status::ChecksumMismatch, "header CRC-32 does not match");
+    if (kVerifyChecksums && crc32(p + table_offset, table_end - table_offset) != rd32(p + H::kTableCrc.offset))
       return fail(Status::ChecksumMismatch, "solution table CRC-32 does not match");
+    return Status::Ok;
+  }
 
-    // Table entries, each checked against the canonical layout (sections in order, 64-aligned).
+  // Table entry s, checked against the canonical layout (sections in order, 64-aligned, starting
+  // at pos; pos ends after its last section).
+  Status read_entry(std::uint32_t s, std::uint64_t& pos) {
+    using namespace detail;
+    namespace E = entry_field;
+    const Header& h = header_;
+    const unsigned char* p = data();
+    const unsigned char* e = p + kHeaderBytes + static_cast<std::uint64_t>(s) * kEntryBytes;
+    SolutionInfo& i = infos_[s];
+    const std::string who = "solution " + std::to_string(s);
+    const void* nul = std::memchr(e + E::kName.offset, 0, E::kName.bytes);
+    if (!nul) return fail(Status::BadHeader, who + ": name is not NUL-terminated within 16 bytes");
+    const std::size_t len = static_cast<std::size_t>(static_cast<const unsigned char*>(nul) - e);
+    if (!all_zero(e + len, E::kName.bytes - len)) return fail(Status::BadHeader, who + ": name padding is not 0");
+    for (std::size_t c = 0; c < len; ++c)
+      if (e[c] < 0x20 || e[c] > 0x7E) return fail(Status::BadHeader, who + ": name is not printable ASCII");
+    i.name.assign(reinterpret_cast<const char*>(e), len);
+    i.index = rdi32(e + E::kIndex.offset);
+    if (i.index < -1 || i.index > 18)
+      return fail(Status::BadHeader, who + ": base solution index " + std::to_string(i.index) + " outside -1..18");
+    for (int a = 0; a < 3; ++a) {
+      i.direction[a] = rdi32(e + E::kDirection.offset + 4 * a);
+      if (i.direction[a] < -1 || i.direction[a] > 1)
+        return fail(Status::BadHeader, who + ": direction component outside -1..1");
+    }
+    i.threshold_mode = rd32(e + E::kThresholdMode.offset);
+    i.threshold_param = rdf32(e + E::kThresholdParam.offset);
+    i.threshold = rdf32(e + E::kThreshold.offset);
+    i.max_abs_value = rdf32(e + E::kMaxAbsValue.offset);
+    if (i.threshold_mode > 1) return fail(Status::BadHeader, who + ": threshold mode must be 0 or 1");
+    if (!(i.threshold_param >= 0 && i.threshold >= 0 && i.max_abs_value >= 0) || !std::isfinite(i.threshold_param) ||
+        !std::isfinite(i.threshold) || !std::isfinite(i.max_abs_value))
+      return fail(Status::BadHeader, who + ": threshold and max value must be finite and >= 0");
+    i.block_count = rd64(e + E::kBlockCount.offset);
+    i.coeff_count = rd64(e + E::kCoeffCount.offset);
+    i.masks_offset = rd64(e + E::kMasksOffset.offset);
+    i.offsets_offset = rd64(e + E::kOffsetsOffset.offset);
+    i.coeffs_offset = rd64(e + E::kCoeffsOffset.offset);
+    i.masks_crc = rd32(e + E::kMasksCrc.offset);
+    i.offsets_crc = rd32(e + E::kOffsetsCrc.offset);
+    i.coeffs_crc = rd32(e + E::kCoeffsCrc.offset);
+    const std::uint32_t encoding = rd32(e + E::kEncoding.offset);
+    if (encoding > 1 || (encoding != 0 && h.version < 2))
+      return fail(Status::BadHeader, who + ": coefficient encoding " + std::to_string(encoding) + " at entry offset 100; " +
+                                         (h.version < 2 ? "version 1 allows only 0" : "allowed: 0 (f32) or 1 (8-bit details)"));
+    i.encoding = static_cast<Encoding>(encoding);
+    i.fast_blocks = rd64(e + E::kFastBlocks.offset);
+    i.max_abs_error = rdf32(e + E::kMaxAbsError.offset);
+    i.rms_error = rdf32(e + E::kRmsError.offset);
+    if (i.encoding == Encoding::F32) {
+      if (!all_zero(e + E::kQuantStep.offset, E::kQuantStep.bytes + E::kDetailsCrc.bytes))
+        return fail(Status::BadHeader, who + ": entry bytes 120..127 are not 0 (f32 encoding)");
+    } else {
+      i.quant_step = rdf32(e + E::kQuantStep.offset);
+      i.details_crc = rd32(e + E::kDetailsCrc.offset);
+      if (!(i.quant_step > 0) || !std::isfinite(i.quant_step * static_cast<float>(kQ8Max)))
+        return fail(Status::BadHeader, who + ": quantisation step must be finite and > 0 (and 127 steps finite)");
+    }
     const std::uint64_t block_count =
         static_cast<std::uint64_t>(h.blocks[0]) * h.blocks[1] * static_cast<std::uint64_t>(h.blocks[2]);
-    std::uint64_t pos = table_end;
-    infos_.resize(h.solution_count);
-    for (std::uint32_t s = 0; s < h.solution_count; ++s) {
-      const unsigned char* e = p + table_offset + static_cast<std::uint64_t>(s) * kEntryBytes;
-      SolutionInfo& i = infos_[s];
-      const std::string who = "solution " + std::to_string(s);
-      const void* nul = std::memchr(e, 0, 16);
-      if (!nul) return fail(Status::BadHeader, who + ": name is not NUL-terminated within 16 bytes");
-      const std::size_t len = static_cast<std::size_t>(static_cast<const unsigned char*>(nul) - e);
-      if (!all_zero(e + len, 16 - len)) return fail(Status::BadHeader, who + ": name padding is not 0");
-      for (std::size_t c = 0; c < len; ++c)
-        if (e[c] < 0x20 || e[c] > 0x7E) return fail(Status::BadHeader, who + ": name is not printable ASCII");
-      i.name.assign(reinterpret_cast<const char*>(e), len);
-      i.index = rdi32(e + 16);
-      if (i.index < -1 || i.index > 18)
-        return fail(Status::BadHeader, who + ": base solution index " + std::to_string(i.index) + " outside -1..18");
-      for (int a = 0; a < 3; ++a) {
-        i.direction[a] = rdi32(e + 20 + 4 * a);
-        if (i.direction[a] < -1 || i.direction[a] > 1)
-          return fail(Status::BadHeader, who + ": direction component outside -1..1");
-      }
-      i.threshold_mode = rd32(e + 32);
-      i.threshold_param = rdf32(e + 36);
-      i.threshold = rdf32(e + 40);
-      i.max_abs_value = rdf32(e + 44);
-      if (i.threshold_mode > 1) return fail(Status::BadHeader, who + ": threshold mode must be 0 or 1");
-      if (!(i.threshold_param >= 0 && i.threshold >= 0 && i.max_abs_value >= 0) || !std::isfinite(i.threshold_param) ||
-          !std::isfinite(i.threshold) || !std::isfinite(i.max_abs_value))
-        return fail(Status::BadHeader, who + ": threshold and max value must be finite and >= 0");
-      i.block_count = rd64(e + 48);
-      i.coeff_count = rd64(e + 56);
-      i.masks_offset = rd64(e + 64);
-      i.offsets_offset = rd64(e + 72);
-      i.coeffs_offset = rd64(e + 80);
-      i.masks_crc = rd32(e + 88);
-      i.offsets_crc = rd32(e + 92);
-      i.coeffs_crc = rd32(e + 96);
-      const std::uint32_t encoding = rd32(e + 100);
-      if (encoding > 1 || (encoding != 0 && version < 2))
-        return fail(Status::BadHeader, who + ": coefficient encoding " + std::to_string(encoding) + " at entry offset 100; " +
-                                           (version < 2 ? "version 1 allows only 0" : "allowed: 0 (f32) or 1 (8-bit details)"));
-      i.encoding = static_cast<Encoding>(encoding);
-      i.fast_blocks = rd64(e + 104);
-      i.max_abs_error = rdf32(e + 112);
-      i.rms_error = rdf32(e + 116);
-      if (i.encoding == Encoding::F32) {
-        if (!all_zero(e + 120, 8)) return fail(Status::BadHeader, who + ": entry bytes 120..127 are not 0 (f32 encoding)");
-      } else {
-        i.quant_step = rdf32(e + 120);
-        i.details_crc = rd32(e + 124);
-        if (!(i.quant_step > 0) || !std::isfinite(i.quant_step * static_cast<float>(kQ8Max)))
-          return fail(Status::BadHeader, who + ": quantisation step must be finite and > 0 (and 127 steps finite)");
-      }
-      if (i.block_count != block_count)
-        return fail(Status::CountOutOfRange, who + ": block count " + std::to_string(i.block_count) +
-                                                 "; the lattice has " + std::to_string(block_count) + " sub-blocks");
-      if (i.coeff_count < i.block_count || i.coeff_count / 64 > i.block_count ||
-          (i.coeff_count / 64 == i.block_count && i.coeff_count % 64 != 0))
-        return fail(Status::CountOutOfRange, who + ": coefficient count " + std::to_string(i.coeff_count) +
-                                                 " outside [blocks, 64 x blocks] = [" + std::to_string(i.block_count) +
-                                                 ", 64 x " + std::to_string(i.block_count) + "]");
-      if (i.fast_blocks > i.block_count)
-        return fail(Status::CountOutOfRange, who + ": fast-path block count exceeds the block count");
-      // Sections: sizes checked against the remaining file before any multiplication can overflow.
-      // Q8 has a fourth section, the details, whose offset is not stored: it is canonical.
-      const bool q8 = i.encoding == Encoding::Q8;
-      const int sections = q8 ? 4 : 3;
-      const std::uint64_t sizes[4] = {8, 4, 12, 3};
-      const std::uint64_t counts[4] = {i.block_count, i.block_count, q8 ? i.block_count : i.coeff_count,
-                                       i.coeff_count - i.block_count};
-      std::uint64_t offsets[4] = {i.masks_offset, i.offsets_offset, i.coeffs_offset, 0};
-      const char* names[4] = {"masks", "offsets", q8 ? "averages" : "coefficients", "details"};
-      for (int k = 0; k < sections; ++k) {
-        const std::uint64_t start = align_up(pos);
-        if (k == 3) offsets[3] = i.details_offset = start;
-        if (offsets[k] != start)
-          return fail(Status::BadHeader, who + ": " + names[k] + " section at " + std::to_string(offsets[k]) +
-                                             "; the canonical layout puts it at " + std::to_string(start));
-        if (start > h.file_bytes || counts[k] > (h.file_bytes - start) / sizes[k])
-          return fail(Status::CountOutOfRange, who + ": " + names[k] + " section of " + std::to_string(counts[k]) +
-                                                   " entries does not fit the file (" + std::to_string(h.file_bytes) +
-                                                   " bytes)");
-        if (!all_zero(p + pos, start - pos)) return fail(Status::BadHeader, who + ": padding before " + names[k] + " is not 0");
-        pos = start + counts[k] * sizes[k];
-      }
+    if (i.block_count != block_count)
+      return fail(Status::CountOutOfRange, who + ": block count " + std::to_string(i.block_count) +
+                                               "; the lattice has " + std::to_string(block_count) + " sub-blocks");
+    if (i.coeff_count < i.block_count || i.coeff_count / 64 > i.block_count ||
+        (i.coeff_count / 64 == i.block_count && i.coeff_count % 64 != 0))
+      return fail(Status::CountOutOfRange, who + ": coefficient count " + std::to_string(i.coeff_count) +
+                                               " outside [blocks, 64 x blocks] = [" + std::to_string(i.block_count) +
+                                               ", 64 x " + std::to_string(i.block_count) + "]");
+    if (i.fast_blocks > i.block_count)
+      return fail(Status::CountOutOfRange, who + ": fast-path block count exceeds the block count");
+    // Sections: sizes checked against the remaining file before any multiplication can overflow.
+    // Q8 has a fourth section, the details, whose offset is not stored: it is canonical.
+    const bool q8 = i.encoding == Encoding::Q8;
+    const int sections = q8 ? 4 : 3;
+    const std::uint64_t sizes[4] = {8, 4, 12, 3};
+    const std::uint64_t counts[4] = {i.block_count, i.block_count, q8 ? i.block_count : i.coeff_count,
+                                     i.coeff_count - i.block_count};
+    std::uint64_t offsets[4] = {i.masks_offset, i.offsets_offset, i.coeffs_offset, 0};
+    const char* names[4] = {"masks", "offsets", q8 ? "averages" : "coefficients", "details"};
+    for (int k = 0; k < sections; ++k) {
+      const std::uint64_t start = align_up(pos);
+      if (k == 3) offsets[3] = i.details_offset = start;
+      if (offsets[k] != start)
+        return fail(Status::BadHeader, who + ": " + names[k] + " section at " + std::to_string(offsets[k]) +
+                                           "; the canonical layout puts it at " + std::to_string(start));
+      if (start > h.file_bytes || counts[k] > (h.file_bytes - start) / sizes[k])
+        return fail(Status::CountOutOfRange, who + ": " + names[k] + " section of " + std::to_string(counts[k]) +
+                                                 " entries does not fit the file (" + std::to_string(h.file_bytes) +
+                                                 " bytes)");
+      if (!all_zero(p + pos, start - pos)) return fail(Status::BadHeader, who + ": padding before " + names[k] + " is not 0");
+      pos = start + counts[k] * sizes[k];
     }
-    if (pos != h.file_bytes)
-      return fail(Status::BadHeader, "the last section ends at " + std::to_string(pos) + " but the file at " +
-                                         std::to_string(h.file_bytes));
+    return Status::Ok;
+  }
 
-    // Section checksums, then the meaning of masks and offsets.
-    for (std::uint32_t s = 0; s < h.solution_count; ++s) {
-      const SolutionInfo& i = infos_[s];
-      const std::string who = "solution " + std::to_string(s) + " (" + i.name + ")";
-      if (kVerifyChecksums && crc32(p + i.masks_offset, i.block_count * 8) != i.masks_crc)
-        return fail(Status::ChecksumMismatch, who + ": masks CRC-32 does not match");
-      if (kVerifyChecksums && crc32(p + i.offsets_offset, i.block_count * 4) != i.offsets_crc)
-        return fail(Status::ChecksumMismatch, who + ": offsets CRC-32 does not match");
-      const bool q8 = i.encoding == Encoding::Q8;
-      const std::uint64_t stored_f32 = q8 ? i.block_count : i.coeff_count;  // RGB triples of f32
-      if (kVerifyChecksums && crc32(p + i.coeffs_offset, stored_f32 * 12) != i.coeffs_crc)
-        return fail(Status::ChecksumMismatch, who + (q8 ? ": averages" : ": coefficients") + " CRC-32 does not match");
-      if (q8 && kVerifyChecksums && crc32(p + i.details_offset, i.detail_count() * 3) != i.details_crc)
-        return fail(Status::ChecksumMismatch, who + ": details CRC-32 does not match");
-      std::uint64_t running = 0, fast = 0;
-      for (std::uint64_t b = 0; b < i.block_count; ++b) {
-        const std::uint64_t mask = rd64(p + i.masks_offset + 8 * b);
-        const std::uint32_t off = rd32(p + i.offsets_offset + 4 * b);
-        if (!(mask & 1u))
-          return fail(Status::Inconsistent, who + ": block " + std::to_string(b) + " does not keep its average");
-        if (off != running)
-          return fail(Status::Inconsistent, who + ": block " + std::to_string(b) + " offset " + std::to_string(off) +
-                                                "; the masks before it keep " + std::to_string(running));
-        running += static_cast<std::uint64_t>(popcount64(mask));
-        fast += mask == 1u;
-        if (running > 0xFFFFFFFFull && b + 1 < i.block_count)
-          return fail(Status::CountOutOfRange, who + ": more than 2^32 coefficients before a block");
-      }
-      if (running != i.coeff_count)
-        return fail(Status::Inconsistent, who + ": masks keep " + std::to_string(running) + " coefficients; count says " +
-                                              std::to_string(i.coeff_count));
-      if (fast != i.fast_blocks)
-        return fail(Status::Inconsistent, who + ": " + std::to_string(fast) + " fast-path blocks; entry says " +
-                                              std::to_string(i.fast_blocks));
-      for (std::uint64_t c = 0; c < stored_f32 * 3; ++c)
-        if (!std::isfinite(rdf32(p + i.coeffs_offset + 4 * c)))
-          return fail(Status::Inconsistent, who + (q8 ? ": average " : ": coefficient ") + std::to_string(c / 3) +
-                                                " is not finite");
-      if (q8)
-        for (std::uint64_t c = 0; c < i.detail_count() * 3; ++c)
-          if (p[i.details_offset + c] == 0x80u)
-            return fail(Status::Inconsistent, who + ": detail " + std::to_string(c / 3) + " holds -128; allowed -127..127");
+  // Solution s's section checksums, then the meaning of its masks and offsets.
+  Status check_sections(std::uint32_t s) {
+    using namespace detail;
+    const unsigned char* p = data();
+    const SolutionInfo& i = infos_[s];
+    const std::string who = "solution " + std::to_string(s) + " (" + i.name + ")";
+    if (kVerifyChecksums && crc32(p + i.masks_offset, i.block_count * 8) != i.masks_crc)
+      return fail(Status::ChecksumMismatch, who + ": masks CRC-32 does not match");
+    if (kVerifyChecksums && crc32(p + i.offsets_offset, i.block_count * 4) != i.offsets_crc)
+      return fail(Status::ChecksumMismatch, who + ": offsets CRC-32 does not match");
+    const bool q8 = i.encoding == Encoding::Q8;
+    const std::uint64_t stored_f32 = q8 ? i.block_count : i.coeff_count;  // RGB triples of f32
+    if (kVerifyChecksums && crc32(p + i.coeffs_offset, stored_f32 * 12) != i.coeffs_crc)
+      return fail(Status::ChecksumMismatch, who + (q8 ? ": averages" : ": coefficients") + " CRC-32 does not match");
+    if (q8 && kVerifyChecksums && crc32(p + i.details_offset, i.detail_count() * 3) != i.details_crc)
+      return fail(Status::ChecksumMismatch, who + ": details CRC-32 does not match");
+    std::uint64_t running = 0, fast = 0;
+    for (std::uint64_t b = 0; b < i.block_count; ++b) {
+      const std::uint64_t mask = rd64(p + i.masks_offset + 8 * b);
+      const std::uint32_t off = rd32(p + i.offsets_offset + 4 * b);
+      if (!(mask & 1u))
+        return fail(Status::Inconsistent, who + ": block " + std::to_string(b) + " does not keep its average");
+      if (off != running)
+        return fail(Status::Inconsistent, who + ": block " + std::to_string(b) + " offset " + std::to_string(off) +
+                                              "; the masks before it keep " + std::to_string(running));
+      running += static_cast<std::uint64_t>(popcount64(mask));
+      fast += mask == 1u;
+      if (running > 0xFFFFFFFFull && b + 1 < i.block_count)
+        return fail(Status::CountOutOfRange, who + ": more than 2^32 coefficients before a block");
     }
-
-    for (int a = 0; a < 3; ++a) {
-      lattice_.n[a] = h.dims[a];
-      lattice_.nb[a] = static_cast<std::int32_t>(h.blocks[a]);
-      lattice_.index_min[a] = h.index_min[a];
-    }
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) lattice_.world_to_index[4 * r + c] = static_cast<float>(h.world_to_index[4 * r + c]);
-    ok_ = true;
-    status_ = Status::Ok;
-    error_.clear();
+    if (running != i.coeff_count)
+      return fail(Status::Inconsistent, who + ": masks keep " + std::to_string(running) + " coefficients; count says " +
+                                            std::to_string(i.coeff_count));
+    if (fast != i.fast_blocks)
+      return fail(Status::Inconsistent, who + ": " + std::to_string(fast) + " fast-path blocks; entry says " +
+                                            std::to_string(i.fast_blocks));
+    for (std::uint64_t c = 0; c < stored_f32 * 3; ++c)
+      if (!std::isfinite(rdf32(p + i.coeffs_offset + 4 * c)))
+        return fail(Status::Inconsistent, who + (q8 ? ": average " : ": coefficient ") + std::to_string(c / 3) +
+                                              " is not finite");
+    if (q8)
+      for (std::uint64_t c = 0; c < i.detail_count() * 3; ++c)
+        if (p[i.details_offset + c] == 0x80u)
+          return fail(Status::Inconsistent, who + ": detail " + std::to_string(c / 3) + " holds -128; allowed -127..127");
     return Status::Ok;
   }
 
