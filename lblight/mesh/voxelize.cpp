@@ -167,11 +167,8 @@ Bins make_bins(std::size_t bins, const std::vector<std::pair<std::uint32_t, std:
   return out;
 }
 
-}  // namespace
-
-VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClass>& part_class,
-                        const VoxelizeOptions& opt, const Location& where, const RunContext& ctx) {
-  const auto t_start = std::chrono::steady_clock::now();
+void check_options(const TriangleMesh& mesh, const std::vector<TriangleClass>& part_class, const VoxelizeOptions& opt,
+                   const Location& where) {
   if (opt.resolution < 1 || opt.resolution > 8192)
     throw_invalid("voxelize: resolution " + std::to_string(opt.resolution) + " is out of range; allowed: 1..8192", where);
   if (opt.supersample < 1 || opt.supersample > kTileFine)
@@ -182,13 +179,11 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
     throw_invalid("voxelize: resolution x supersample is too large (at most 16777216 fine cells per edge)", where);
   if (part_class.size() < mesh.parts.size())
     throw Error(ErrorCategory::Internal, "voxelize: no class for every mesh part", where);
+}
 
-  VoxelizeResult result;
-  VoxelizeStats& st = result.stats;
-  st.triangles = mesh.triangles.size();
+// Which triangles have area (world units; relative to the longest edge so scale does not matter).
+std::vector<std::uint8_t> usable_triangles(const TriangleMesh& mesh, const Location& where, VoxelizeStats& st) {
   const std::size_t nv = mesh.vertices.size();
-
-  // Which triangles have area (world units; relative to the longest edge so scale does not matter).
   std::vector<std::uint8_t> usable(mesh.triangles.size(), 0);
   for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
     const auto& tri = mesh.triangles[i];
@@ -205,8 +200,21 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
     if (l2 > 0.0 && area2 > 1e-12 * l2) usable[i] = 1;
     else ++st.degenerate;
   }
+  return usable;
+}
 
-  // The box: given bounds, or the bounds of the triangles that have area.
+// Cubic nodes: `resolution` along the longest edge of the box, centred on it along the others;
+// `supersample` fine cells per node and axis.
+struct Layout {
+  int S = 1, P = 0;  // supersample, padding
+  double h = 0, hf = 0;  // node and fine-cell edge (world units)
+  int n[3] = {0, 0, 0}, N[3] = {0, 0, 0};  // nodes and fine cells per axis (no padding)
+  Vec3 origin{};  // world position of the corner of node (0, 0, 0)
+};
+
+// The box (given bounds, or the bounds of the triangles that have area) and the node layout on it.
+Layout node_layout(const TriangleMesh& mesh, const std::vector<std::uint8_t>& usable, const VoxelizeOptions& opt,
+                   const Location& where) {
   Vec3 bmin{}, bmax{};
   if (opt.has_bounds) {
     bmin = opt.bounds_min;
@@ -233,27 +241,32 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
   const double longest = std::max({bmax[0] - bmin[0], bmax[1] - bmin[1], bmax[2] - bmin[2]});
   if (!(longest > 0.0)) throw_invalid(mesh.source + ": the mesh's bounding box has zero size", where);
 
-  // Cubic nodes: `resolution` along the longest edge, centred on the box along the others.
-  const int R = opt.resolution, S = opt.supersample, P = opt.padding;
-  const double h = longest / R, hf = h / S;
-  if (!(h >= kMinNodeSize))
-    throw_invalid(mesh.source + ": nodes would be " + message_number(h) + " world units wide (box " +
+  Layout l;
+  const int R = opt.resolution;
+  l.S = opt.supersample;
+  l.P = opt.padding;
+  l.h = longest / R;
+  l.hf = l.h / l.S;
+  if (!(l.h >= kMinNodeSize))
+    throw_invalid(mesh.source + ": nodes would be " + message_number(l.h) + " world units wide (box " +
                       message_number(longest) + " / resolution " + std::to_string(R) + "); allowed: at least " +
                       message_number(kMinNodeSize) + " (OpenVDB transforms): scale the mesh up or lower the resolution",
                   where);
-  int n[3];
-  Vec3 origin;  // world position of the corner of node (0, 0, 0)
   for (int a = 0; a < 3; ++a) {
-    n[a] = std::clamp(static_cast<int>(std::ceil((bmax[a] - bmin[a]) / h - 1e-9)), 1, R);
-    origin[a] = 0.5 * (bmin[a] + bmax[a]) - 0.5 * n[a] * h;
+    l.n[a] = std::clamp(static_cast<int>(std::ceil((bmax[a] - bmin[a]) / l.h - 1e-9)), 1, R);
+    l.origin[a] = 0.5 * (bmin[a] + bmax[a]) - 0.5 * l.n[a] * l.h;
+    l.N[a] = l.n[a] * l.S;
   }
-  const int N[3] = {n[0] * S, n[1] * S, n[2] * S};
-  st.fine_dims = {N[0], N[1], N[2]};
+  return l;
+}
 
-  ModelGrid& g = result.grid;
-  g.dims = {n[0] + 2 * P, n[1] + 2 * P, n[2] + 2 * P};
+// The output grid of the layout, empty, with its transform; refused when it would not fit in memory.
+void allocate_grid(const Layout& l, const Location& where, ModelGrid& g) {
+  const int P = l.P;
+  const double h = l.h;
+  g.dims = {l.n[0] + 2 * P, l.n[1] + 2 * P, l.n[2] + 2 * P};
   g.index_min = {-P, -P, -P};
-  g.index_to_world = {h, 0, 0, origin[0] + 0.5 * h, 0, h, 0, origin[1] + 0.5 * h, 0, 0, h, origin[2] + 0.5 * h,
+  g.index_to_world = {h, 0, 0, l.origin[0] + 0.5 * h, 0, h, 0, l.origin[1] + 0.5 * h, 0, 0, h, l.origin[2] + 0.5 * h,
                       0, 0, 0, 1};
   const double bytes = static_cast<double>(g.dims.count()) * 5.0;
   const std::size_t avail = host_available_memory_bytes();
@@ -264,18 +277,20 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
                 where);
   g.density.assign(g.dims.count(), 0.0f);
   g.material.assign(g.dims.count(), kMaterialMedium);
+}
 
-  // Triangles in fine-index coordinates.
+// Triangles in fine-index coordinates.
+std::vector<Prepared> prepare_triangles(const TriangleMesh& mesh, const std::vector<std::uint8_t>& usable,
+                                        const std::vector<TriangleClass>& part_class, const Layout& l, int threads) {
   std::vector<Prepared> prep(mesh.triangles.size());
   const long long ntri = static_cast<long long>(mesh.triangles.size());
-  const int threads = ctx.threads > 0 ? ctx.threads : omp_get_max_threads();
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (long long i = 0; i < ntri; ++i) {
     if (!usable[static_cast<std::size_t>(i)]) continue;
     Prepared& t = prep[static_cast<std::size_t>(i)];
     const auto& tri = mesh.triangles[static_cast<std::size_t>(i)];
     for (int k = 0; k < 3; ++k)
-      for (int a = 0; a < 3; ++a) t.v[k][a] = (mesh.vertices[tri[k]][a] - origin[a]) / hf;
+      for (int a = 0; a < 3; ++a) t.v[k][a] = (mesh.vertices[tri[k]][a] - l.origin[a]) / l.hf;
     t.n = cross3(sub3(t.v[1], t.v[0]), sub3(t.v[2], t.v[0]));
     t.d = dot3(t.n, t.v[0]);
     t.dom = 0;
@@ -283,20 +298,39 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
       if (std::abs(t.n[a]) > std::abs(t.n[t.dom])) t.dom = a;
     for (int a = 0; a < 3; ++a) {
       const double mn = std::min({t.v[0][a], t.v[1][a], t.v[2][a]}), mx = std::max({t.v[0][a], t.v[1][a], t.v[2][a]});
-      t.lo[a] = clamp_int(std::ceil(mn - kEps) - 1, 0, N[a]);
-      t.hi[a] = clamp_int(std::floor(mx + kEps), -1, N[a] - 1);
+      t.lo[a] = clamp_int(std::ceil(mn - kEps) - 1, 0, l.N[a]);
+      t.hi[a] = clamp_int(std::floor(mx + kEps), -1, l.N[a] - 1);
     }
     t.cls = static_cast<std::uint8_t>(part_class[mesh.triangle_part[static_cast<std::size_t>(i)]]);
   }
+  return prep;
+}
 
-  // Tiles of C^3 nodes = F^3 fine cells (F <= 64), and which triangles overlap each.
-  const int C = std::max(1, kTileFine / S), F = C * S;
-  const int T[3] = {(n[0] + C - 1) / C, (n[1] + C - 1) / C, (n[2] + C - 1) / C};
+// Tiles of C^3 nodes = F^3 fine cells (F <= 64), and which triangles overlap each: `tiles` per
+// 3D tile (rasterised), `columns` per tile column (ray crossings for solid fill, also those below
+// or above the box).
+struct TileBins {
+  int C = 1, F = 1;
+  int T[3] = {0, 0, 0};
+  Bins tiles, columns;
+  std::size_t tile_index(int tx, int ty, int tz) const {
+    return (static_cast<std::size_t>(tz) * T[1] + ty) * T[0] + tx;
+  }
+};
+
+TileBins bin_triangles(const TriangleMesh& mesh, const std::vector<Prepared>& prep,
+                       const std::vector<std::uint8_t>& usable, const Layout& l, bool fill, const Location& where,
+                       VoxelizeStats& st) {
+  TileBins tb;
+  tb.C = std::max(1, kTileFine / l.S);
+  tb.F = tb.C * l.S;
+  const int C = tb.C, F = tb.F;
+  for (int a = 0; a < 3; ++a) tb.T[a] = (l.n[a] + C - 1) / C;
+  const int* T = tb.T;
   const std::size_t tiles3 = static_cast<std::size_t>(T[0]) * T[1] * T[2];
   const std::size_t tiles2 = static_cast<std::size_t>(T[0]) * T[1];
   if (tiles3 >= (std::size_t{1} << 31))
     throw Error(ErrorCategory::Unavailable, "voxelize: the fine grid is too large (more than 2^31 tiles)", where);
-  const bool fill = opt.fill != FillMode::None;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs, pairs2;
   for (std::size_t i = 0; i < prep.size(); ++i) {
     if (!usable[i]) continue;
@@ -307,7 +341,6 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
       tl[a] = t.lo[a] / F;
       th[a] = t.hi[a] / F;
     }
-    // Fill needs every crossing of a column's ray, also those below or above the box.
     if (fill && in_xy && t.n[2] != 0.0)
       for (int ty = tl[1]; ty <= th[1]; ++ty)
         for (int tx = tl[0]; tx <= th[0]; ++tx)
@@ -325,15 +358,14 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
             const int t0[3] = {tx * F, ty * F, tz * F};
             Vec3 centre, half;
             for (int a = 0; a < 3; ++a) {
-              const int w = std::min(F, N[a] - t0[a]);
+              const int w = std::min(F, l.N[a] - t0[a]);
               centre[a] = t0[a] + 0.5 * w;
               half[a] = 0.5 * w + kEps;
             }
             if (!triangle_box_overlap(t.v[0], t.v[1], t.v[2], centre, half)) continue;
           }
           any = true;
-          pairs.push_back({static_cast<std::uint32_t>((static_cast<std::size_t>(tz) * T[1] + ty) * T[0] + tx),
-                           static_cast<std::uint32_t>(i)});
+          pairs.push_back({static_cast<std::uint32_t>(tb.tile_index(tx, ty, tz)), static_cast<std::uint32_t>(i)});
         }
     if (!any) ++st.outside;
   }
@@ -341,139 +373,196 @@ VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClas
     throw_invalid(mesh.source + ": no triangle with non-zero area lies inside the voxelisation box (" +
                       std::to_string(st.degenerate) + " degenerate, " + std::to_string(st.outside) + " outside)",
                   where);
-  const Bins bins = make_bins(tiles3, pairs);
-  const Bins bins2 = fill ? make_bins(tiles2, pairs2) : Bins{};
-  pairs.clear();
-  pairs.shrink_to_fit();
-  pairs2.clear();
-  pairs2.shrink_to_fit();
+  tb.tiles = make_bins(tiles3, pairs);
+  if (fill) tb.columns = make_bins(tiles2, pairs2);
+  return tb;
+}
 
-  // Per-coarse-cell bit masks within a 64-bit row.
-  std::vector<Row> cmask(static_cast<std::size_t>(C));
-  for (int ci = 0; ci < C; ++ci) cmask[ci] = (S == 64 ? ~Row{0} : ((Row{1} << S) - 1)) << (ci * S);
+// Fine-cell counts a thread adds up (integers: the sum does not depend on the order).
+struct Counts {
+  std::uint64_t occupied = 0, leaf = 0, wood = 0, open = 0;
+  std::size_t nodes = 0, brown = 0;
+};
+
+// One thread's buffers for a tile column: fine-cell rows of a tile, ray crossings and filled
+// intervals per fine column, fine-cell counts per node of a tile.
+struct ColumnScratch {
+  std::vector<Row> leaf, wood;
+  std::vector<std::vector<Crossing>> cross;
+  std::vector<std::vector<Interval>> filled;
+  std::vector<std::uint32_t> cnt_occ, cnt_leaf, cnt_wood;
+  ColumnScratch(int C, bool fill)
+      : leaf(static_cast<std::size_t>(kTileFine) * kTileFine),
+        wood(leaf.size()),
+        cross(fill ? leaf.size() : 0),
+        filled(fill ? leaf.size() : 0),
+        cnt_occ(static_cast<std::size_t>(C) * C * C),
+        cnt_leaf(cnt_occ.size()),
+        cnt_wood(cnt_occ.size()) {}
+};
+
+// Solid fill of one tile column (fine columns [x0, x0 + fx) x [y0, y0 + fy)): intervals of inside
+// cells per fine column, from the sorted ray crossings; [fill_lo, fill_hi]: the cells any of them covers.
+void fill_column(const std::vector<Prepared>& prep, const Bins& columns, long long col, int x0, int y0, int fx, int fy,
+                 FillMode mode, int nz_fine, ColumnScratch& sc, int& fill_lo, int& fill_hi, Counts& counts) {
+  for (auto& c : sc.cross) c.clear();
+  for (auto& f : sc.filled) f.clear();
+  const std::uint32_t* it = columns.begin(static_cast<std::size_t>(col));
+  for (std::size_t q = 0; q < columns.size(static_cast<std::size_t>(col)); ++q)
+    add_crossings(prep[it[q]], x0, y0, fx, fy, sc.cross);
+  for (int yl = 0; yl < fy; ++yl)
+    for (int xl = 0; xl < fx; ++xl) {
+      auto& cl = sc.cross[static_cast<std::size_t>(yl) * kTileFine + xl];
+      if (cl.empty()) continue;
+      std::sort(cl.begin(), cl.end(), [](const Crossing& p, const Crossing& q) { return p.z < q.z; });
+      int w = 0;
+      double zin = 0;
+      std::uint8_t cls = 0;
+      auto inside = [&](int x) { return mode == FillMode::Parity ? (x & 1) != 0 : x != 0; };
+      for (const Crossing& cr : cl) {
+        const bool was = inside(w);
+        w = mode == FillMode::Parity ? (w ^ 1) : w + cr.sign;
+        const bool now = inside(w);
+        if (!was && now) {
+          zin = cr.z;
+          cls = cr.cls;
+        } else if (was && !now) {
+          // Cells whose centre k + 0.5 lies strictly between the two crossings.
+          const int k0 = clamp_int(std::floor(zin - 0.5) + 1, 0, nz_fine);
+          const int k1 = clamp_int(std::ceil(cr.z - 0.5) - 1, -1, nz_fine - 1);
+          if (k0 <= k1) {
+            sc.filled[static_cast<std::size_t>(yl) * kTileFine + xl].push_back({k0, k1, cls});
+            fill_lo = std::min(fill_lo, k0);
+            fill_hi = std::max(fill_hi, k1);
+          }
+        }
+      }
+      if (w != 0) ++counts.open;  // not closed along this ray: the open end stays empty
+    }
+}
+
+// One tile: rasterise its triangles and filled intervals into fine-cell rows, then box-filter
+// them into its nodes of `g` (density = touched fraction, brown where wood touches more cells).
+void voxelize_tile(const std::vector<Prepared>& prep, const TileBins& tb, const Layout& l, const Tile& tile, int tx,
+                   int ty, int tz, bool has_fill, ColumnScratch& sc, ModelGrid& g, Counts& counts) {
+  const int S = l.S, C = tb.C, P = l.P;
+  const int fx = tile.fx, fy = tile.fy, fz = tile.fz, z0 = tile.z0;
+  std::fill(sc.leaf.begin(), sc.leaf.end(), 0);
+  std::fill(sc.wood.begin(), sc.wood.end(), 0);
+  const std::size_t tile_index = tb.tile_index(tx, ty, tz);
+  const std::uint32_t* it = tb.tiles.begin(tile_index);
+  for (std::size_t q = 0; q < tb.tiles.size(tile_index); ++q) {
+    const Prepared& t = prep[it[q]];
+    rasterize(t, tile, t.cls == static_cast<std::uint8_t>(TriangleClass::Wood) ? sc.wood : sc.leaf);
+  }
+  if (has_fill)
+    for (int yl = 0; yl < fy; ++yl)
+      for (int xl = 0; xl < fx; ++xl)
+        for (const Interval& iv : sc.filled[static_cast<std::size_t>(yl) * kTileFine + xl]) {
+          const int k0 = std::max(iv.k0, z0), k1 = std::min(iv.k1, z0 + fz - 1);
+          auto& rows = iv.cls == static_cast<std::uint8_t>(TriangleClass::Wood) ? sc.wood : sc.leaf;
+          for (int k = k0; k <= k1; ++k)
+            rows[static_cast<std::size_t>(k - z0) * kTileFine + static_cast<std::size_t>(yl)] |= Row{1} << xl;
+        }
+  // Box filter: count fine cells per node, through per-node bit masks within a 64-bit row.
+  std::fill(sc.cnt_occ.begin(), sc.cnt_occ.end(), 0);
+  std::fill(sc.cnt_leaf.begin(), sc.cnt_leaf.end(), 0);
+  std::fill(sc.cnt_wood.begin(), sc.cnt_wood.end(), 0);
+  const Row node_bits = S == 64 ? ~Row{0} : ((Row{1} << S) - 1);
+  const int cx = (fx + S - 1) / S;
+  for (int zl = 0; zl < fz; ++zl)
+    for (int yl = 0; yl < fy; ++yl) {
+      const std::size_t r = static_cast<std::size_t>(zl) * kTileFine + static_cast<std::size_t>(yl);
+      const Row lw = sc.leaf[r], ww = sc.wood[r], ow = lw | ww;
+      if (ow == 0) continue;
+      const std::size_t base = (static_cast<std::size_t>(zl / S) * C + static_cast<std::size_t>(yl / S)) * C;
+      for (int ci = 0; ci < cx; ++ci) {
+        const Row m = node_bits << (ci * S);
+        if ((ow & m) == 0) continue;
+        sc.cnt_occ[base + ci] += static_cast<std::uint32_t>(__builtin_popcountll(ow & m));
+        sc.cnt_leaf[base + ci] += static_cast<std::uint32_t>(__builtin_popcountll(lw & m));
+        sc.cnt_wood[base + ci] += static_cast<std::uint32_t>(__builtin_popcountll(ww & m));
+      }
+    }
   const double inv_cells = 1.0 / (static_cast<double>(S) * S * S);
+  const int cy = (fy + S - 1) / S, cz = (fz + S - 1) / S;
+  for (int ck = 0; ck < cz; ++ck)
+    for (int cj = 0; cj < cy; ++cj)
+      for (int ci = 0; ci < cx; ++ci) {
+        const std::size_t n = (static_cast<std::size_t>(ck) * C + cj) * C + ci;
+        if (sc.cnt_occ[n] == 0) continue;
+        const std::size_t out = g.dims.index(tx * C + ci + P, ty * C + cj + P, tz * C + ck + P);
+        g.density[out] = static_cast<float>(sc.cnt_occ[n] * inv_cells);
+        const bool brown = sc.cnt_wood[n] > sc.cnt_leaf[n];
+        g.material[out] = brown ? kMaterialWood : kMaterialMedium;
+        counts.occupied += sc.cnt_occ[n];
+        counts.leaf += sc.cnt_leaf[n];
+        counts.wood += sc.cnt_wood[n];
+        ++counts.nodes;
+        counts.brown += brown;
+      }
+}
 
-  std::uint64_t occ_total = 0, leaf_total = 0, wood_total = 0, open_total = 0;
-  std::size_t occupied_nodes = 0, brown_nodes = 0;
-  const long long columns = static_cast<long long>(tiles2);
-#pragma omp parallel num_threads(threads) reduction(+ : occ_total, leaf_total, wood_total, open_total, occupied_nodes, brown_nodes)
+}  // namespace
+
+VoxelizeResult voxelize(const TriangleMesh& mesh, const std::vector<TriangleClass>& part_class,
+                        const VoxelizeOptions& opt, const Location& where, const RunContext& ctx) {
+  const auto t_start = std::chrono::steady_clock::now();
+  check_options(mesh, part_class, opt, where);
+  VoxelizeResult result;
+  VoxelizeStats& st = result.stats;
+  st.triangles = mesh.triangles.size();
+  const std::vector<std::uint8_t> usable = usable_triangles(mesh, where, st);
+  const Layout l = node_layout(mesh, usable, opt, where);
+  st.fine_dims = {l.N[0], l.N[1], l.N[2]};
+  ModelGrid& g = result.grid;
+  allocate_grid(l, where, g);
+
+  const int threads = ctx.threads > 0 ? ctx.threads : omp_get_max_threads();
+  const std::vector<Prepared> prep = prepare_triangles(mesh, usable, part_class, l, threads);
+  const bool fill = opt.fill != FillMode::None;
+  const TileBins tb = bin_triangles(mesh, prep, usable, l, fill, where, st);
+
+  // Tile columns in parallel: each writes only its own nodes.
+  Counts total;
+  const long long columns = static_cast<long long>(tb.T[0]) * tb.T[1];
+#pragma omp parallel num_threads(threads)
   {
-    std::vector<Row> leaf(static_cast<std::size_t>(kTileFine) * kTileFine), wood(leaf.size());
-    std::vector<std::vector<Crossing>> cross(fill ? leaf.size() : 0);
-    std::vector<std::vector<Interval>> filled(fill ? leaf.size() : 0);
-    std::vector<std::uint32_t> cnt_occ(static_cast<std::size_t>(C) * C * C), cnt_leaf(cnt_occ.size()),
-        cnt_wood(cnt_occ.size());
+    ColumnScratch sc(tb.C, fill);
+    Counts mine;
 #pragma omp for schedule(dynamic, 1)
     for (long long col = 0; col < columns; ++col) {
       if (ctx.cancelled()) continue;  // no throw inside OpenMP
-      const int tx = static_cast<int>(col % T[0]), ty = static_cast<int>(col / T[0]);
-      const int x0 = tx * F, y0 = ty * F, fx = std::min(F, N[0] - x0), fy = std::min(F, N[1] - y0);
-      // Solid fill: intervals of inside cells per fine column, from sorted ray crossings.
+      const int tx = static_cast<int>(col % tb.T[0]), ty = static_cast<int>(col / tb.T[0]);
+      const int x0 = tx * tb.F, y0 = ty * tb.F, fx = std::min(tb.F, l.N[0] - x0), fy = std::min(tb.F, l.N[1] - y0);
       int fill_lo = std::numeric_limits<int>::max(), fill_hi = -1;
-      if (fill && bins2.size(static_cast<std::size_t>(col)) > 0) {
-        for (auto& c : cross) c.clear();
-        for (auto& f : filled) f.clear();
-        const std::uint32_t* it = bins2.begin(static_cast<std::size_t>(col));
-        for (std::size_t q = 0; q < bins2.size(static_cast<std::size_t>(col)); ++q) add_crossings(prep[it[q]], x0, y0, fx, fy, cross);
-        for (int yl = 0; yl < fy; ++yl)
-          for (int xl = 0; xl < fx; ++xl) {
-            auto& cl = cross[static_cast<std::size_t>(yl) * kTileFine + xl];
-            if (cl.empty()) continue;
-            std::sort(cl.begin(), cl.end(), [](const Crossing& p, const Crossing& q) { return p.z < q.z; });
-            int w = 0;
-            double zin = 0;
-            std::uint8_t cls = 0;
-            auto inside = [&](int x) { return opt.fill == FillMode::Parity ? (x & 1) != 0 : x != 0; };
-            for (const Crossing& cr : cl) {
-              const bool was = inside(w);
-              w = opt.fill == FillMode::Parity ? (w ^ 1) : w + cr.sign;
-              const bool now = inside(w);
-              if (!was && now) {
-                zin = cr.z;
-                cls = cr.cls;
-              } else if (was && !now) {
-                // Cells whose centre k + 0.5 lies strictly between the two crossings.
-                const int k0 = clamp_int(std::floor(zin - 0.5) + 1, 0, N[2]);
-                const int k1 = clamp_int(std::ceil(cr.z - 0.5) - 1, -1, N[2] - 1);
-                if (k0 <= k1) {
-                  filled[static_cast<std::size_t>(yl) * kTileFine + xl].push_back({k0, k1, cls});
-                  fill_lo = std::min(fill_lo, k0);
-                  fill_hi = std::max(fill_hi, k1);
-                }
-              }
-            }
-            if (w != 0) ++open_total;  // not closed along this ray: the open end stays empty
-          }
-      }
-      for (int tz = 0; tz < T[2]; ++tz) {
-        const std::size_t tile_index = (static_cast<std::size_t>(tz) * T[1] + ty) * T[0] + tx;
-        const int z0 = tz * F, fz = std::min(F, N[2] - z0);
+      if (fill && tb.columns.size(static_cast<std::size_t>(col)) > 0)
+        fill_column(prep, tb.columns, col, x0, y0, fx, fy, opt.fill, l.N[2], sc, fill_lo, fill_hi, mine);
+      for (int tz = 0; tz < tb.T[2]; ++tz) {
+        const int z0 = tz * tb.F, fz = std::min(tb.F, l.N[2] - z0);
         const bool has_fill = fill_hi >= z0 && fill_lo < z0 + fz;
-        if (bins.size(tile_index) == 0 && !has_fill) continue;
-        const Tile tile{x0, y0, z0, fx, fy, fz};
-        std::fill(leaf.begin(), leaf.end(), 0);
-        std::fill(wood.begin(), wood.end(), 0);
-        const std::uint32_t* it = bins.begin(tile_index);
-        for (std::size_t q = 0; q < bins.size(tile_index); ++q) {
-          const Prepared& t = prep[it[q]];
-          rasterize(t, tile, t.cls == static_cast<std::uint8_t>(TriangleClass::Wood) ? wood : leaf);
-        }
-        if (has_fill)
-          for (int yl = 0; yl < fy; ++yl)
-            for (int xl = 0; xl < fx; ++xl)
-              for (const Interval& iv : filled[static_cast<std::size_t>(yl) * kTileFine + xl]) {
-                const int k0 = std::max(iv.k0, z0), k1 = std::min(iv.k1, z0 + fz - 1);
-                auto& rows = iv.cls == static_cast<std::uint8_t>(TriangleClass::Wood) ? wood : leaf;
-                for (int k = k0; k <= k1; ++k)
-                  rows[static_cast<std::size_t>(k - z0) * kTileFine + static_cast<std::size_t>(yl)] |= Row{1} << xl;
-              }
-        // Box filter: count fine cells per node.
-        std::fill(cnt_occ.begin(), cnt_occ.end(), 0);
-        std::fill(cnt_leaf.begin(), cnt_leaf.end(), 0);
-        std::fill(cnt_wood.begin(), cnt_wood.end(), 0);
-        const int cx = (fx + S - 1) / S;
-        for (int zl = 0; zl < fz; ++zl)
-          for (int yl = 0; yl < fy; ++yl) {
-            const std::size_t r = static_cast<std::size_t>(zl) * kTileFine + static_cast<std::size_t>(yl);
-            const Row lw = leaf[r], ww = wood[r], ow = lw | ww;
-            if (ow == 0) continue;
-            const std::size_t base = (static_cast<std::size_t>(zl / S) * C + static_cast<std::size_t>(yl / S)) * C;
-            for (int ci = 0; ci < cx; ++ci) {
-              const Row m = cmask[ci];
-              if ((ow & m) == 0) continue;
-              cnt_occ[base + ci] += static_cast<std::uint32_t>(__builtin_popcountll(ow & m));
-              cnt_leaf[base + ci] += static_cast<std::uint32_t>(__builtin_popcountll(lw & m));
-              cnt_wood[base + ci] += static_cast<std::uint32_t>(__builtin_popcountll(ww & m));
-            }
-          }
-        const int cy = (fy + S - 1) / S, cz = (fz + S - 1) / S;
-        for (int ck = 0; ck < cz; ++ck)
-          for (int cj = 0; cj < cy; ++cj)
-            for (int ci = 0; ci < cx; ++ci) {
-              const std::size_t l = (static_cast<std::size_t>(ck) * C + cj) * C + ci;
-              if (cnt_occ[l] == 0) continue;
-              const std::size_t out =
-                  g.dims.index(tx * C + ci + P, ty * C + cj + P, tz * C + ck + P);
-              g.density[out] = static_cast<float>(cnt_occ[l] * inv_cells);
-              const bool brown = cnt_wood[l] > cnt_leaf[l];
-              g.material[out] = brown ? kMaterialWood : kMaterialMedium;
-              occ_total += cnt_occ[l];
-              leaf_total += cnt_leaf[l];
-              wood_total += cnt_wood[l];
-              ++occupied_nodes;
-              brown_nodes += brown;
-            }
+        if (tb.tiles.size(tb.tile_index(tx, ty, tz)) == 0 && !has_fill) continue;
+        voxelize_tile(prep, tb, l, {x0, y0, z0, fx, fy, fz}, tx, ty, tz, has_fill, sc, g, mine);
       }
+    }
+#pragma omp critical
+    {
+      total.occupied += mine.occupied;
+      total.leaf += mine.leaf;
+      total.wood += mine.wood;
+      total.open += mine.open;
+      total.nodes += mine.nodes;
+      total.brown += mine.brown;
     }
   }
   ctx.check_cancelled();
-  st.fine_occupied = occ_total;
-  st.fine_leaf = leaf_total;
-  st.fine_wood = wood_total;
-  st.fine_both = leaf_total + wood_total - occ_total;
-  st.open_columns = open_total;
-  st.occupied_nodes = occupied_nodes;
-  st.brown_nodes = brown_nodes;
+  st.fine_occupied = total.occupied;
+  st.fine_leaf = total.leaf;
+  st.fine_wood = total.wood;
+  st.fine_both = total.leaf + total.wood - total.occupied;
+  st.open_columns = total.open;
+  st.occupied_nodes = total.nodes;
+  st.brown_nodes = total.brown;
   st.threads = threads;
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return result;

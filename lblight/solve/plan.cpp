@@ -126,6 +126,119 @@ bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int coun
   return true;
 }
 
+// The model's grid, checked (docs/model.md sec. 6), cropped to its occupied box and grown into
+// its lattice.
+void plan_lattice(ModelPlan& mp, const Scene& scene, const RunContext& ctx, std::vector<std::string>& warnings) {
+  const ModelSpec& spec = *mp.spec;
+  mp.grid = load_model_grid(spec, scene, ctx);
+  mp.stats = check_stability(spec, mp.grid, scene, warnings);
+  const Dims full = mp.grid.dims;
+  mp.savings.full_lattice = {full.nx + 2 * spec.margin, full.ny + 2 * spec.margin, full.nz + 2 * spec.margin};
+  if (spec.crop) {
+    mp.grid = crop_to_occupied(mp.grid);
+    mp.savings.cropped = mp.grid.dims.count() != full.count();
+  }
+  mp.lattice = build_lattice(mp.grid, spec.margin);
+  for (int c = 0; c < 3; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
+}
+
+// One system per distinct channel: a grey material solves once and fills R, G and B.
+void plan_channels(ModelPlan& mp) {
+  const ModelSpec& spec = *mp.spec;
+  for (int c = 0; c < kChannels; ++c) {
+    ChannelMaterials ch;
+    ch.omega[kMaterialMedium] = build_omega(spec.material.channel[c]);
+    ch.absorbs[kMaterialMedium] = spec.material.absorbs;
+    ch.omega[kMaterialWood] = build_omega(spec.wood_material.channel[c]);
+    ch.absorbs[kMaterialWood] = spec.wood_material.absorbs;
+    int found = -1;
+    for (std::size_t u = 0; u < mp.channels.size(); ++u)
+      if (same_channel(mp.channels[u], ch, mp.lattice.material_count)) found = static_cast<int>(u);
+    if (found < 0) {
+      found = static_cast<int>(mp.channels.size());
+      mp.channels.push_back(ch);
+    }
+    mp.channel_of[c] = found;
+  }
+  mp.savings.channels_solved = static_cast<int>(mp.channels.size());
+}
+
+// The solutions and their boundary values: the static sun's one, or the base solutions the scene
+// (or --solutions) asks for, B00 marked derived when it is the sum of the other 18.
+void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) {
+  if (scene.lighting.mode == LightingMode::Static) {
+    if (ov.solutions) throw_invalid("--solutions applies to base lighting; this scene bakes static lighting",
+                                    {scene.file.string(), "/lighting/mode", {}});
+    SolutionPlan s;
+    s.index = -1;
+    s.grid_name = "light";
+    const Vec3d& t = scene.lighting.toward_sun;
+    s.boundary =
+        static_boundary(decompose_direction({-t.x, -t.y, -t.z}), scene.lighting.intensity, scene.lighting.ambient);
+    mp.solutions.push_back(s);
+    return;
+  }
+  const std::vector<int>& wanted = ov.solutions.value_or(scene.lighting.solutions);
+  bool all_directional = true;
+  for (int j = 1; j < 19; ++j)
+    all_directional = all_directional && std::find(wanted.begin(), wanted.end(), j) != wanted.end();
+  if (!ov.solutions && scene.lighting.solutions_from_sun)
+    for (int j = 0; j < 19; ++j)
+      if (std::find(wanted.begin(), wanted.end(), j) == wanted.end()) mp.savings.solutions_left_out.push_back(j);
+  for (int idx : wanted) {
+    SolutionPlan s;
+    s.index = idx;
+    s.grid_name = base_grid_name(idx);
+    s.direction = {d3q19::cx(idx), d3q19::cy(idx), d3q19::cz(idx)};
+    s.boundary = base_boundary(idx);
+    // docs/model.md sec. 4: with an empty boundary layer (margin >= 1 guarantees it) the interior
+    // of B_0 is the sum of the directional solutions, so it need not be solved.
+    s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && mp.spec->margin >= 1;
+    mp.savings.ambient_from_sum = mp.savings.ambient_from_sum || s.derived;
+    mp.solutions.push_back(s);
+  }
+}
+
+// How the model is iterated, with what the chosen method and storage cannot do refused here,
+// before any solving.
+void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Precision precision) {
+  const int longest = mp.lattice.dims.longest();
+  StepPolicy& st = mp.steps;
+  st.mode = ov.mode.value_or(scene.solver.mode);
+  st.method = ov.method.value_or(scene.solver.method);
+  st.precision = precision;
+  if (st.method == SolverMethod::BiCGStab && st.mode != IterationMode::Auto)
+    throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate), not " +
+                      std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +
+                      "; set --iterations auto or solver.iterations \"auto\"",
+                  {scene.file.string(), "/solver/method", {}});
+  if (st.method == SolverMethod::BiCGStab && precision == Precision::Float16)
+    throw_invalid("solver method bicgstab runs on float32 storage, not float16; use method plain with float16, or "
+                  "precision float32",
+                  {scene.file.string(), "/solver/method", {}});
+  if (precision == Precision::Float16)
+    for (const SolutionPlan& s : mp.solutions)
+      for (double v : s.boundary)
+        if (v > kFloat16MaxBoundary)
+          throw_invalid("float16 storage holds values up to 65504, and a boundary value of " + message_number(v) +
+                            " (intensity plus ambient) is above the " + message_number(kFloat16MaxBoundary) +
+                            " that leaves room for; light is linear in them: scale intensity and ambient down "
+                            "and the result up, or use float32",
+                        {scene.file.string(), "/lighting/intensity", {}});
+  st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
+  st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
+                                                      : std::clamp((longest + 2) / 4, 4, 16);
+  st.min_steps = longest;
+  st.max_steps = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 100 * longest;
+  if (st.mode == IterationMode::Paper) st.fixed_steps = 2 * longest;
+  if (st.mode == IterationMode::Fixed) st.fixed_steps = ov.mode ? ov.iterations : scene.solver.iterations;
+  st.decay_hint = slowest_decay(mp);
+  mp.estimated_steps = st.mode == IterationMode::Auto
+                           ? std::clamp(estimate_steps(mp, st.tolerance), static_cast<double>(st.min_steps),
+                                        static_cast<double>(st.max_steps))
+                           : st.fixed_steps;
+}
+
 }  // namespace
 
 BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
@@ -136,103 +249,10 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
   for (const ModelSpec& spec : scene.models) {
     ModelPlan mp;
     mp.spec = &spec;
-    mp.grid = load_model_grid(spec, scene, ctx);
-    mp.stats = check_stability(spec, mp.grid, scene, plan.warnings);
-    const Dims full = mp.grid.dims;
-    mp.savings.full_lattice = {full.nx + 2 * spec.margin, full.ny + 2 * spec.margin, full.nz + 2 * spec.margin};
-    if (spec.crop) {
-      mp.grid = crop_to_occupied(mp.grid);
-      mp.savings.cropped = mp.grid.dims.count() != full.count();
-    }
-    mp.lattice = build_lattice(mp.grid, spec.margin);
-    for (int c = 0; c < 3; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
-
-    // One system per distinct channel: a grey material solves once and fills R, G and B.
-    for (int c = 0; c < kChannels; ++c) {
-      ChannelMaterials ch;
-      ch.omega[kMaterialMedium] = build_omega(spec.material.channel[c]);
-      ch.absorbs[kMaterialMedium] = spec.material.absorbs;
-      ch.omega[kMaterialWood] = build_omega(spec.wood_material.channel[c]);
-      ch.absorbs[kMaterialWood] = spec.wood_material.absorbs;
-      int found = -1;
-      for (std::size_t u = 0; u < mp.channels.size(); ++u)
-        if (same_channel(mp.channels[u], ch, mp.lattice.material_count)) found = static_cast<int>(u);
-      if (found < 0) {
-        found = static_cast<int>(mp.channels.size());
-        mp.channels.push_back(ch);
-      }
-      mp.channel_of[c] = found;
-    }
-    mp.savings.channels_solved = static_cast<int>(mp.channels.size());
-
-    if (scene.lighting.mode == LightingMode::Static) {
-      if (ov.solutions) throw_invalid("--solutions applies to base lighting; this scene bakes static lighting",
-                                      {scene.file.string(), "/lighting/mode", {}});
-      SolutionPlan s;
-      s.index = -1;
-      s.grid_name = "light";
-      const Vec3d& t = scene.lighting.toward_sun;
-      const std::array<double, 19> b =
-          static_boundary(decompose_direction({-t.x, -t.y, -t.z}), scene.lighting.intensity, scene.lighting.ambient);
-      s.boundary = b;
-      mp.solutions.push_back(s);
-    } else {
-      const std::vector<int>& wanted = ov.solutions.value_or(scene.lighting.solutions);
-      bool all_directional = true;
-      for (int j = 1; j < 19; ++j)
-        all_directional = all_directional && std::find(wanted.begin(), wanted.end(), j) != wanted.end();
-      if (!ov.solutions && scene.lighting.solutions_from_sun)
-        for (int j = 0; j < 19; ++j)
-          if (std::find(wanted.begin(), wanted.end(), j) == wanted.end()) mp.savings.solutions_left_out.push_back(j);
-      for (int idx : wanted) {
-        SolutionPlan s;
-        s.index = idx;
-        s.grid_name = base_grid_name(idx);
-        s.direction = {d3q19::cx(idx), d3q19::cy(idx), d3q19::cz(idx)};
-        s.boundary = base_boundary(idx);
-        // Spec sec. 4: with an empty boundary layer (margin >= 1 guarantees it) the interior of
-        // B_0 is the sum of the directional solutions, so it need not be solved.
-        s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && spec.margin >= 1;
-        mp.savings.ambient_from_sum = mp.savings.ambient_from_sum || s.derived;
-        mp.solutions.push_back(s);
-      }
-    }
-
-    const int longest = mp.lattice.dims.longest();
-    StepPolicy& st = mp.steps;
-    st.mode = ov.mode.value_or(scene.solver.mode);
-    st.method = ov.method.value_or(scene.solver.method);
-    st.precision = plan.precision;
-    if (st.method == SolverMethod::BiCGStab && st.mode != IterationMode::Auto)
-      throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate), not " +
-                        std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +
-                        "; set --iterations auto or solver.iterations \"auto\"",
-                    {scene.file.string(), "/solver/method", {}});
-    if (st.method == SolverMethod::BiCGStab && plan.precision == Precision::Float16)
-      throw_invalid("solver method bicgstab runs on float32 storage, not float16; use method plain with float16, or "
-                    "precision float32",
-                    {scene.file.string(), "/solver/method", {}});
-    if (plan.precision == Precision::Float16)
-      for (const SolutionPlan& s : mp.solutions)
-        for (double v : s.boundary)
-          if (v > kFloat16MaxBoundary)
-            throw_invalid("float16 storage holds values up to 65504, and a boundary value of " + message_number(v) +
-                              " (intensity plus ambient) is above the " + message_number(kFloat16MaxBoundary) +
-                              " that leaves room for; light is linear in them: scale intensity and ambient down "
-                              "and the result up, or use float32",
-                          {scene.file.string(), "/lighting/intensity", {}});
-    st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
-    st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
-                                                        : std::clamp((longest + 2) / 4, 4, 16);
-    st.min_steps = longest;
-    st.max_steps = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 100 * longest;
-    if (st.mode == IterationMode::Paper) st.fixed_steps = 2 * longest;
-    if (st.mode == IterationMode::Fixed) st.fixed_steps = ov.mode ? ov.iterations : scene.solver.iterations;
-    st.decay_hint = slowest_decay(mp);
-    mp.estimated_steps = st.mode == IterationMode::Auto
-                             ? std::clamp(estimate_steps(mp, st.tolerance), static_cast<double>(st.min_steps),
-                                          static_cast<double>(st.max_steps))
-                             : st.fixed_steps;
+    plan_lattice(mp, scene, ctx, plan.warnings);
+    plan_channels(mp);
+    plan_solutions(mp, scene, ov);
+    plan_steps(mp, scene, ov, plan.precision);
     plan.models.push_back(std::move(mp));
   }
   return plan;
