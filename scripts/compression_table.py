@@ -8,7 +8,7 @@ Runs `lblight compress MODEL.vdb --threshold T --relative --json` for each thres
 (float RGB bytes / stream bytes), RMS error (over all nodes, channels and solutions), the largest
 max error, the same relative to each solution's max |value|, the share of fast-path blocks and the
 total encode time, for the default coefficient storage (8-bit details when T > 0), then ratio,
-RMS and max error with f32 coefficients (--coefficients f32, 001's scheme).
+RMS and max error with f32 coefficients (--coefficients f32, [Steele2009]'s scheme).
 """
 import json
 import math

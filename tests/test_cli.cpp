@@ -179,7 +179,7 @@ TEST_CASE("validate prints the plan without writing anything", "[cli]") {
   CHECK(entries == 1);
 }
 
-TEST_CASE("Every validation rule of spec sec. 6 exits 2 and writes nothing", "[cli][validate]") {
+TEST_CASE("Every validation rule of docs/model.md sec. 6 exits 2 and writes nothing", "[cli][validate]") {
   expect_rejected(model_with(kProc, R"({"sigma_a": -0.01, "sigma_s": 0.5, "g": 0})"), "sigma_a");
   expect_rejected(model_with(kProc, R"({"sigma_a": 0.01, "sigma_s": [0.5, 0.5, -0.5], "g": 0})"), "channel blue");
   expect_rejected(model_with(kProc, R"({"sigma_a": 0.01, "sigma_s": 0.5, "g": -1.01})"), "-1 <= g <= 1");

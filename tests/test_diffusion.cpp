@@ -1,4 +1,4 @@
-// The diffusion coefficient of 000 eq. (4), measured from a spreading pulse in a homogeneous
+// The diffusion coefficient of [Geist2010] eq. (4), measured from a spreading pulse in a homogeneous
 // medium: the second moment of the total density grows as 6 D t.
 #include <catch2/catch.hpp>
 
@@ -36,7 +36,7 @@ double measured_diffusion(const OpticalParams& p, double rho = 1.0, bool absorb 
   so.max_systems = 1;
   auto solver = backend->create(uniform_lattice(d, static_cast<float>(rho)), {channel(p, absorb)}, so);
   solver->reset({system_for(0, std::array<double, 19>{})});
-  // A unit pulse at local equilibrium f = v / (1 + sigma_a) (000 eq. 15): f_0 holds sigma_a
+  // A unit pulse at local equilibrium f = v / (1 + sigma_a) ([Geist2010] eq. 15): f_0 holds sigma_a
   // times the moving mass at any density (none where the material absorbs).
   std::vector<double> f(19 * d.count(), 0.0);
   const std::size_t centre = d.index(c, c, c);
@@ -56,7 +56,7 @@ double measured_diffusion(const OpticalParams& p, double rho = 1.0, bool absorb 
 
 }  // namespace
 
-TEST_CASE("Measured diffusion coefficient matches 000 eq. (4) within 1%, also at density 0.5", "[diffusion]") {
+TEST_CASE("Measured diffusion coefficient matches Geist2010 eq. (4) within 1%, also at density 0.5", "[diffusion]") {
   for (OpticalParams p : {OpticalParams{0.008, 0.792, 0.0}, OpticalParams{0.1, 0.6, 0.0}, OpticalParams{0.3, 1.2, 0.0}}) {
     const double want = diffusion_coefficient(p);
     const double got = measured_diffusion(p);

@@ -1,6 +1,6 @@
-// Stiff and extreme cases (issue 6 item 3): parameters at the edges of what spec sec. 6 allows,
-// awkward geometry, tiny densities and values, long runs, and the energy bookkeeping of spec
-// sec. 3. Each TEST_CASE name states what it expects; the measured figures are in
+// Stiff and extreme cases (issue 6 item 3): parameters at the edges of what docs/model.md sec. 6 allows,
+// awkward geometry, tiny densities and values, long runs, and the energy bookkeeping of
+// docs/model.md sec. 3. Each TEST_CASE name states what it expects; the measured figures are in
 // docs/stability.md (the WARN lines print them).
 //
 // Accuracy is "relative to max(|ref|, 1e-3 * max |ref|)": relative where there is light, and
@@ -111,7 +111,7 @@ double seconds_per_step(LatticeSolver& solver, int steps) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
-// 1. rho * sigma_t just below 2 (spec sec. 6 allows < 2): the diffusion coefficient of 000 eq. (4)
+// 1. rho * sigma_t just below 2 (docs/model.md sec. 6 allows < 2): the diffusion coefficient of [Geist2010] eq. (4)
 // is about 1e-4 and 1 + rho Omega_mm is about -1, so the non-equilibrium part of every node flips
 // sign each step and decays only as 0.999^t. Wood (g = -1) is at its own limit,
 // rho (sigma_a + 2 sigma_s) = 1.999 (see the backscattering test case below).
@@ -157,10 +157,10 @@ TEST_CASE("rho*sigma_t = 1.999: finite, float32 within 1e-5 of the reference (no
   WARN("stiff vs reference: normwise " << worst_norm << ", pointwise " << worst_point);
 }
 
-// Where 1 + rho Omega_mm < 0 (spec sec. 6 warns), a node's own direction is passed on with a
+// Where 1 + rho Omega_mm < 0 (docs/model.md sec. 6 warns), a node's own direction is passed on with a
 // negative factor (about -0.999 here), so totals go negative: in transients, and where light is
-// also absorbed, in the converged result too (the reference agrees; it is the scheme of spec
-// sec. 3, not a backend error). Expect: finite; transients never below -1 x the largest total
+// also absorbed, in the converged result too (the reference agrees; it is the scheme of
+// docs/model.md sec. 3, not a backend error). Expect: finite; transients never below -1 x the largest total
 // (measured -0.88 within 400 steps); converged (10^4 steps) g = 0.9 scattering is positive, the
 // absorbing leaf converges to totals below -0.3 x the largest (measured -0.36 to -0.88), float32
 // within 1e-5 (normwise) of float64 there.
@@ -239,13 +239,13 @@ TEST_CASE("No sec. 6 warning (1 + rho Omega_mm >= 0): totals >= -1e-6 max at eve
   CHECK(worst <= 1e-6);
 }
 
-// Found by these tests: rho * sigma_t < 2 (spec sec. 6) does not keep the scheme stable with
+// Found by these tests: rho * sigma_t < 2 (docs/model.md sec. 6) does not keep the scheme stable with
 // backscattering. The odd patterns f_m = -f_opp(m) are multiplied by 1 - rho (sigma_t - sigma_s
 // lambda) per collision, lambda down to -1 at g = -1, so e.g. wood with sigma_a 0.2, sigma_s 1.7,
 // g = -1 (rho sigma_t = 1.9) grows by 2.6 per step. Validation now also rejects a spectral radius
 // of 1 + rho Omega above 1. Expect: what it rejects blows up (> 1e6 within 200 steps on a uniform
 // lattice) and what it accepts stays bounded (< 100 with boundary values summing to 19); the CLI
-// check is in tests/test_cli.cpp ("Every validation rule of spec sec. 6").
+// check is in tests/test_cli.cpp ("Every validation rule of docs/model.md sec. 6").
 TEST_CASE("Backscattering: spectral radius > 1 diverges and is rejected, radius 1 stays bounded",
           "[extreme][stiff][validate]") {
   const LatticeGeometry g = uniform_lattice({12, 12, 12}, 1.0f);
@@ -257,7 +257,7 @@ TEST_CASE("Backscattering: spectral radius > 1 diverges and is rejected, radius 
       const double radius = collision_spectral_radius(build_omega(p), 1.0, absorb);
       const auto t = solve_totals_f64(*backend, g, {channel(p, absorb)}, system_for(0, base(0)), 200);
       INFO("sigma_a " << p.sigma_a << ", sigma_s " << p.sigma_s << ", g " << p.g << ": radius " << radius);
-      CHECK(p.sigma_t() < 2.0);  // accepted by the rule of spec sec. 6 alone
+      CHECK(p.sigma_t() < 2.0);  // accepted by the rule of docs/model.md sec. 6 alone
       CHECK(radius > 1.05);
       CHECK(!(peak_magnitude(t) < 1e6));  // huge, Inf or NaN
     }
@@ -585,7 +585,7 @@ TEST_CASE("100k steps on 8^3: float32 stays within 1e-5 of float64 (no drift)", 
 }
 
 // ---------------------------------------------------------------------------------------------
-// 7. Energy bookkeeping (spec sec. 3): with S the sum of f over interior nodes,
+// 7. Energy bookkeeping (docs/model.md sec. 3): with S the sum of f over interior nodes,
 //   S(t+1) = S(t) + inflow - outflow - absorbed
 // where inflow is what boundary nodes push into the interior, outflow what interior nodes push
 // into boundary nodes, and absorbed the f_0 that absorbing nodes dump (what sigma_a moved into

@@ -114,7 +114,7 @@ TEST_CASE("float16 storage (GPU mode, emulated): error against float32 reported 
     WARN("SKIPPED: this compiler has no _Float16; the float16 storage emulation needs it");
     return;
   }
-  // A cloud-like medium (000 sec. 3.2.1 albedo, forward scattering) lit along -z, run to steady
+  // A cloud-like medium ([Geist2010] sec. 3.2.1 albedo, forward scattering) lit along -z, run to steady
   // state in both storages. Expectation (docs/accuracy.md, float16): float16 keeps ~3 significant
   // digits per stored value, and the steady state amplifies the rounding by about 1 / (1 - q),
   // q the per-step contraction, so the totals differ from float32 by 1e-4..1e-2 relative: not 0

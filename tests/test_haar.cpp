@@ -1,4 +1,4 @@
-// Haar sub-block streams: the transform (001 sec. 2.3), the encoder's error bound, the reader's
+// Haar sub-block streams: the transform ([Steele2009] sec. 2.3), the encoder's error bound, the reader's
 // sampling and relighting, and the reader's rejection of damaged files.
 #include <catch2/catch.hpp>
 
@@ -108,7 +108,7 @@ void fix_table_crc(std::string& s, int solutions = 1) {
 
 }  // namespace
 
-TEST_CASE("001's Haar example [4 19 44 0] gives [16.75 -5.25 -7.5 22]", "[haar]") {
+TEST_CASE("Steele2009's Haar example [4 19 44 0] gives [16.75 -5.25 -7.5 22]", "[haar]") {
   float v[4] = {4, 19, 44, 0};
   lbh::haar_forward_1d(v, 1);
   CHECK(v[0] == 16.75f);

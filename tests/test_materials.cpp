@@ -5,7 +5,7 @@
 
 using namespace lblight;
 
-TEST_CASE("Leaf g derives from fs/bs by 001 eq. (4.3) and matches Table 6.1", "[materials]") {
+TEST_CASE("Leaf g derives from fs/bs by Steele2009 eq. (4.3) and matches Table 6.1", "[materials]") {
   const auto leaf = material_preset("leaf");
   REQUIRE(leaf);
   const LeafTable& t = leaf_table_6_1();

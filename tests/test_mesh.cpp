@@ -1,4 +1,4 @@
-// Meshes in: the OBJ reader, leaf / wood classification by name, and the voxeliser (001 sec. 5.1)
+// Meshes in: the OBJ reader, leaf / wood classification by name, and the voxeliser ([Steele2009] sec. 5.1)
 // against exact analytic occupied fractions and a brute-force reference.
 #include <catch2/catch.hpp>
 

@@ -1,4 +1,4 @@
-// Collision matrix properties the spec states (sec. 2) and 000 sec. 7 derives.
+// Collision matrix properties docs/model.md sec. 2 states and [Geist2010] sec. 7 derives.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -54,7 +54,7 @@ TEST_CASE("Normalised phase function sums to one with the lattice weights", "[om
     }
 }
 
-TEST_CASE("Isotropic null vector of 000 sec. 7: Omega v = 0", "[omega]") {
+TEST_CASE("Isotropic null vector of Geist2010 sec. 7: Omega v = 0", "[omega]") {
   for (double sa : {0.0, 0.008, 0.109, 0.5})
     for (double ss : {0.3, 0.792, 0.9}) {
       const OmegaMatrix om = build_omega({sa, ss, 0.0});
@@ -118,13 +118,13 @@ TEST_CASE("Reduction rejects a matrix without central symmetry", "[omega]") {
   CHECK_THROWS_AS(reduce_omega(om), std::invalid_argument);
 }
 
-TEST_CASE("Diffusion coefficient of 000 eq. (4)", "[omega]") {
+TEST_CASE("Diffusion coefficient of Geist2010 eq. (4)", "[omega]") {
   CHECK(diffusion_coefficient({0.008, 0.792, 0}) == Approx((2.0 / 0.8 - 1.0) / (4.0 * 1.008)));
   CHECK(diffusion_coefficient({0.5, 1.5, 0}) == Approx(0.0));
   CHECK(diffusion_coefficient({0.5, 1.6, 0}) < 0.0);
 }
 
-// Entries of Omega worked out from 000 eqs. (8)-(9) by hand, grouping the 18 directions by their
+// Entries of Omega worked out from [Geist2010] eqs. (8)-(9) by hand, grouping the 18 directions by their
 // cosine to the incoming one (the property tests above hold for any normalised phase; this pins
 // the Henyey-Greenstein shape, its exponent 3/2 and the 2:1 axial:diagonal weighting). Incoming
 // j = 1, (+1, 0, 0): axial directions at cos 1, -1 and 0 (x4); diagonal ones at cos 1/sqrt2 (x4),

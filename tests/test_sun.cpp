@@ -1,4 +1,4 @@
-// Sun decomposition on the 32-face polyhedron (001 sec. 4.1, spec sec. 4).
+// Sun decomposition on the 32-face polyhedron ([Steele2009] sec. 4.1, docs/model.md sec. 4).
 #include <catch2/catch.hpp>
 
 #include <cmath>

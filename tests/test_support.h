@@ -1,5 +1,5 @@
-// Helpers shared by the tests: a literal reference implementation of the spec's update rule,
-// lattice builders, temporary folders and running the CLI.
+// Helpers shared by the tests: a literal reference implementation of the update rule of
+// docs/model.md sec. 3, lattice builders, temporary folders and running the CLI.
 #pragma once
 
 #include <array>
@@ -17,7 +17,7 @@
 
 namespace lblight::test {
 
-// Where the interior's light goes in one step of spec sec. 3, for a state f (19 * count values,
+// Where the interior's light goes in one step of docs/model.md sec. 3, for a state f (19 * count values,
 // direction-major, boundary nodes holding their fixed values). With S = sum of f over interior
 // nodes, the update conserves sum_m f~_m at every node (the columns of Omega sum to 0), so
 //   S(t+1) = S(t) + inflow - outflow - absorbed

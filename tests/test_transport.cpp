@@ -1,5 +1,5 @@
-// The update rule (spec sec. 3) and boundary conditions (sec. 4) on small lattices: the CPU
-// backend against the literal reference, and the properties the spec promises.
+// The update rule (docs/model.md sec. 3) and boundary conditions (sec. 4) on small lattices: the CPU
+// backend against the literal reference, and the properties docs/model.md promises.
 #include <catch2/catch.hpp>
 
 #include <cmath>

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A closed, teapot-like solid for the PMMA example (000 sec. 3.2.3, Table 2).
+"""A closed, teapot-like solid for the PMMA example ([Geist2010] sec. 3.2.3, Table 2).
 
 Three closed, outward-oriented parts that overlap: a body of revolution with a lid and knob, a
 curved spout and a handle (tubes with capped ends). `lblight voxelize --fill winding` (or a mesh

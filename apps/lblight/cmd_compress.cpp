@@ -105,7 +105,7 @@ Command add_compress_command(CLI::App& app, const GlobalOptions&) {
       ->check(finite_range(0.0, 1e30));
   cmd->add_flag("--relative", args->relative, "Threshold relative to each grid's largest |value| (e.g. 0.01 = 1%)");
   cmd->add_option("--coefficients", args->coefficients,
-                  "Storage of kept coefficients: f32 (every coefficient as 3 floats, as 001), q8 (block average as "
+                  "Storage of kept coefficients: f32 (every coefficient as 3 floats, as [Steele2009]), q8 (block average as "
                   "floats, details as 8-bit multiples of a step of threshold / 2, coarser only if the largest detail "
                   "needs it; about 2.5x smaller at the same threshold), auto (q8 when the threshold is > 0, else f32)")
       ->check(CLI::IsMember({"auto", "f32", "q8"}))

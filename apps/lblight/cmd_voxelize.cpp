@@ -1,5 +1,5 @@
-// lblight voxelize: a triangle mesh to an OpenVDB density grid (001 sec. 5.1) with a `brown`
-// grid marking wood nodes (001 sec. 4.1), the same voxelisation a scene's `mesh` source runs.
+// lblight voxelize: a triangle mesh to an OpenVDB density grid ([Steele2009] sec. 5.1) with a `brown`
+// grid marking wood nodes ([Steele2009] sec. 4.1), the same voxelisation a scene's `mesh` source runs.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -84,7 +84,7 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   nlohmann::json dmeta = frame_box;
   dmeta["lblight_meaning"] = "fraction of the node's supersample^3 fine cells touched by the mesh";
   nlohmann::json bmeta = frame_box;
-  bmeta["lblight_meaning"] = "1 where wood touches more fine cells of the node than leaves (001 sec. 4.1)";
+  bmeta["lblight_meaning"] = "1 where wood touches more fine cells of the node than leaves ([Steele2009] sec. 4.1)";
   const std::vector<DenseGridOut> grids = {{"density", &g.density, nullptr, true, dmeta},
                                            {"brown", &brown, nullptr, false, bmeta}};
   // Written under a temporary name and renamed: the output appears complete or not at all.
@@ -122,8 +122,8 @@ Command add_voxelize_command(CLI::App& app, const GlobalOptions& global) {
   CLI::App* cmd = app.add_subcommand(
       "voxelize",
       "Voxelize a triangle mesh (Wavefront OBJ) into an OpenVDB file with a float 'density' grid (fraction of "
-      "each node covered by the mesh, 001 sec. 5.1) and a float 'brown' grid (1 where wood outweighs leaves, "
-      "001 sec. 4.1). Leaf and wood triangles are told apart by material, group or object name.");
+      "each node covered by the mesh, [Steele2009] sec. 5.1) and a float 'brown' grid (1 where wood outweighs leaves, "
+      "[Steele2009] sec. 4.1). Leaf and wood triangles are told apart by material, group or object name.");
   cmd->add_option("mesh", args->mesh, "Mesh file (.obj)")->required();
   cmd->add_option("-o,--output", args->out, "Output .vdb file (default: <mesh name>.vdb here)")->check(kNonEmpty);
   cmd->add_option("-r,--resolution", args->resolution, "Nodes along the longest edge of the box")

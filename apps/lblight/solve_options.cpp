@@ -22,7 +22,7 @@ void SolveOptions::add_to(CLI::App& cmd) {
       ->check(kNonEmpty);
   cmd.add_option("--iterations", iterations,
                  "Steps per solution: 'auto' (until the error estimate is below --tolerance), 'paper' "
-                 "(2 x longest lattice edge, 000 sec. 3.1), or a fixed count (default: the scene's)")
+                 "(2 x longest lattice edge, [Geist2010] sec. 3.1), or a fixed count (default: the scene's)")
       ->check(kNonEmpty);
   cmd.add_option("--tolerance", tolerance,
                  "Target relative error for --iterations auto (default: the scene's, else 1e-4)")

@@ -1,7 +1,7 @@
 // CUDA backend: the thread-per-node loop around backends/cuda/lb_device.h (and so around
 // lattice/collide.h). Written against gpu_runtime.h, so the same file compiles with hipcc.
 //
-// Choices (000 sec. 3.1, 001 sec. 5.1, then further):
+// Choices ([Geist2010] sec. 3.1, [Steele2009] sec. 5.1, then further):
 // - one thread per interior node, x along threadIdx.x: every direction array is read and
 //   written coalesced (structure of arrays, x fastest);
 // - the 19 values stay in registers; Omega (reduced form) lives in constant memory;

@@ -3,7 +3,7 @@
 //
 // The CPU runs the update in "pull" form: the state holds post-collision values g at their own
 // node, and a step gathers f_m(q) = g_m(q - c_m), collides at q and stores g(q) back at q. That
-// is the spec's update rule (f(t+1) = S g(t), g = C f) with the same fixed point, the same
+// is the update rule of docs/model.md sec. 3 (f(t+1) = S g(t), g = C f) with the same fixed point, the same
 // trajectory and the same totals; it is chosen because every store then lands on its own node:
 // rows are padded so interior chunks start on a cache line, and full chunks leave through
 // non-temporal stores, which skip the read-for-ownership a push scheme pays on every store

@@ -16,7 +16,7 @@
 namespace lblight {
 
 // What stays fixed while a lattice is solved: its shape, medium density and material per node.
-// The boundary layer (spec sec. 4) must have density 0.
+// The boundary layer (docs/model.md sec. 4) must have density 0.
 struct LatticeGeometry {
   Dims dims;
   std::vector<float> density;          // dims.count() values in [0, 1]

@@ -1,4 +1,4 @@
-// The encoder's side of the Haar sub-block scheme (spec sec. 7, docs/lbh-format.md). The transform
+// The encoder's side of the Haar sub-block scheme (docs/model.md sec. 7, docs/lbh-format.md). The transform
 // itself is written once, in the reader (readers/lbh/lbh_reader.h), and used here as is, so the
 // encoder and every reader agree on the filters, their order and the coefficient layout.
 #pragma once

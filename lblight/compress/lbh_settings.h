@@ -7,7 +7,7 @@
 
 namespace lblight {
 
-// How kept coefficients are stored (docs/lbh-format.md sec. 2.3): F32 as 001 does; Q8 keeps each
+// How kept coefficients are stored (docs/lbh-format.md sec. 2.3): F32 as [Steele2009] does; Q8 keeps each
 // block's average in f32 and stores details as 8-bit multiples of a per-solution step of half
 // the threshold, coarser only when the largest kept detail exceeds 63.5 steps (not for
 // non-negative totals at relative thresholds >= 1%), so quantising a kept detail usually costs a

@@ -1,4 +1,4 @@
-// Haar-compressed sub-block streams (spec sec. 7; 001 secs. 2.3, 4.5, 5.3): encoding one base
+// Haar-compressed sub-block streams (docs/model.md sec. 7; [Steele2009] secs. 2.3, 4.5, 5.3): encoding one base
 // solution, measuring what the compression cost, and writing the .lbh file of a model
 // (docs/lbh-format.md). Readers use readers/lbh/lbh_reader.h.
 #pragma once

@@ -18,7 +18,7 @@ struct LbhFileContents {
 // Encodes the Vec3f grids named in `grids` (empty: every Vec3f grid, in name order) of `file`.
 // All of them must share one lattice (dims, index box and transform). Solution index and
 // direction come from the grids' lblight_solution / lblight_direction metadata; without it a grid
-// named B00..B18 is that base solution (direction from spec sec. 1), others get -1 and 0.
+// named B00..B18 is that base solution (direction from docs/model.md sec. 1), others get -1 and 0.
 LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSettings& threshold,
                              const std::vector<std::string>& grids = {}, int threads = 0);
 

@@ -1,4 +1,4 @@
-// The per-node physics of one LB step (spec sec. 3), written once for every backend:
+// The per-node physics of one LB step (docs/model.md sec. 3), written once for every backend:
 //   post_m = f~_m + rho * sum_n Omega_mn f~_n
 // with Omega applied in its reduced form (collision_op.h). Backends supply only the loop
 // around it (OpenMP rows, GPU threads).
@@ -48,7 +48,7 @@ LBL_HOSTDEV LBL_FORCEINLINE Real f0_deficit(const CollisionOp<OpReal>& op, const
 
 // The whole per-node update for a node of one material; post_m goes to store(m, value) as soon
 // as it is known. f0_keep is 0 for materials that absorb ("green" nodes dump what they absorbed
-// last step, 001 Listing 5.1) and 1 otherwise.
+// last step, [Steele2009] Listing 5.1) and 1 otherwise.
 template <typename Real, typename OpReal, typename Store>
 LBL_HOSTDEV LBL_FORCEINLINE void collide_node(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
                                               const Real (&f)[d3q19::kQ], Store&& store) {

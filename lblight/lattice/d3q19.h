@@ -1,4 +1,4 @@
-// D3Q19 direction tables in the order of the solver contract (spec sec. 1).
+// D3Q19 direction tables in the order of the solver contract (docs/model.md sec. 1).
 // Functions rather than arrays so that host and device code can share them; with a constant
 // argument (unrolled loops) they fold to literals.
 #pragma once
@@ -24,7 +24,7 @@ LBL_HOSTDEV constexpr int opposite(int m) { return m == 0 ? 0 : ((m & 1) ? m + 1
 
 LBL_HOSTDEV constexpr bool is_axial(int m) { return m >= 1 && m <= 6; }
 
-// Lattice weight of a moving direction: 1/12 axial, 1/24 diagonal (000 eqs. 6-7); 0 for rest.
+// Lattice weight of a moving direction: 1/12 axial, 1/24 diagonal ([Geist2010] eqs. 6-7); 0 for rest.
 LBL_HOSTDEV constexpr double weight(int m) {
   return m == 0 ? 0.0 : (is_axial(m) ? 1.0 / 12.0 : 1.0 / 24.0);
 }

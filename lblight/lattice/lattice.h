@@ -21,7 +21,7 @@ struct Dims {
                static_cast<std::size_t>(nx) +
            static_cast<std::size_t>(x);
   }
-  // Boundary nodes are the outermost layer (spec sec. 4).
+  // Boundary nodes are the outermost layer (docs/model.md sec. 4).
   LBL_HOSTDEV bool is_boundary(int x, int y, int z) const {
     return x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1;
   }

@@ -57,12 +57,6 @@ OmegaMatrix build_omega(const OpticalParams& p) {
   return om;
 }
 
-OmegaMatrixF to_float(const OmegaMatrix& omega) {
-  OmegaMatrixF out{};
-  for (std::size_t k = 0; k < omega.size(); ++k) out[k] = static_cast<float>(omega[k]);
-  return out;
-}
-
 double diffusion_coefficient(const OpticalParams& p, double rho, bool absorbs) {
   const double st = rho * p.sigma_t();
   if (st <= 0.0) return std::numeric_limits<double>::infinity();
@@ -76,7 +70,7 @@ double min_diagonal_gain(const OmegaMatrix& omega, double rho) {
 }
 
 double collision_spectral_radius(const OmegaMatrix& omega, double rho, bool absorbs) {
-  // A = (I + rho Omega) K, K = diag(keep, 1, ..., 1): the update of spec sec. 3 as a matrix.
+  // A = (I + rho Omega) K, K = diag(keep, 1, ..., 1): the update of docs/model.md sec. 3 as a matrix.
   std::array<double, kQ * kQ> a{}, b{};
   for (int m = 0; m < kQ; ++m)
     for (int n = 0; n < kQ; ++n)

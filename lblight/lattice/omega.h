@@ -1,4 +1,4 @@
-// The collision matrix Omega of 000 eqs. (5)-(9), built in double precision on the host.
+// The collision matrix Omega of [Geist2010] eqs. (5)-(9), built in double precision on the host.
 #pragma once
 
 #include <array>
@@ -17,7 +17,6 @@ struct OpticalParams {
 
 // Row-major 19x19: entry (m, n) = omega[m * 19 + n] scatters from direction n into direction m.
 using OmegaMatrix = std::array<double, d3q19::kQ * d3q19::kQ>;
-using OmegaMatrixF = std::array<float, d3q19::kQ * d3q19::kQ>;
 
 // Discrete Henyey-Greenstein value p_ij(g) of eq. (9) for moving directions i, j >= 1.
 // |g| = 1 is the limit: 1 where n_i . n_j = sign(g), else 0 (never evaluated as 0/0).
@@ -26,10 +25,10 @@ double hg_phase(double g, int i, int j);
 // Normalised phase pn_ij(g) of eq. (8); for every j, sum_i w_i pn_ij = 1.
 double normalized_phase(double g, int i, int j);
 
+// Omega of one material and channel (docs/model.md sec. 2).
 OmegaMatrix build_omega(const OpticalParams& params);
-OmegaMatrixF to_float(const OmegaMatrix& omega);
 
-// LB diffusion coefficient of 000 eq. (4) with lambda = tau = 1 for a node of density rho:
+// LB diffusion coefficient of [Geist2010] eq. (4) with lambda = tau = 1 for a node of density rho:
 // ((2 / (rho sigma_t)) - 1) / (4 (1 + sigma_a)). The density scales f_0's release (Omega_00 = -1)
 // as much as what feeds it (sigma_a), so f_0 holds sigma_a times the moving mass at any rho and
 // light rests there a fraction sigma_a / (1 + sigma_a) of the time: 1 + sigma_a, not
@@ -38,12 +37,12 @@ OmegaMatrixF to_float(const OmegaMatrix& omega);
 double diffusion_coefficient(const OpticalParams& params, double rho = 1.0, bool absorbs = false);
 
 // Smallest diagonal entry 1 + rho * Omega_mm over m; negative values mean transients can go
-// negative (spec sec. 6 asks for a warning, not a rejection).
+// negative (docs/model.md sec. 6 asks for a warning, not a rejection).
 double min_diagonal_gain(const OmegaMatrix& omega, double rho);
 
 // Spectral radius of one node's update f -> f~ + rho Omega f~ (f~_0 = 0 when the material
 // absorbs): the factor by which a uniform region of density rho amplifies its worst pattern of
-// directions per step. Above 1 the scheme diverges there. rho sigma_t < 2 (spec sec. 6) keeps it
+// directions per step. Above 1 the scheme diverges there. rho sigma_t < 2 (docs/model.md sec. 6) keeps it
 // at 1 for g >= 0, but with backscattering the odd patterns (f_m = -f_opp(m)) are multiplied by
 // 1 - rho (sigma_t - sigma_s lambda), lambda down to -1 at g = -1: e.g. sigma_a 0.2,
 // sigma_s 1.7, g = -1 at rho 1 gives -2.6 although rho sigma_t = 1.9. Computed in double as

@@ -1,5 +1,5 @@
-// Sun decomposition on the 32-face polyhedron of the 18 unit lattice directions (001 sec. 4.1,
-// spec sec. 4): a direction is written as barycentric weights on the three lattice directions of
+// Sun decomposition on the 32-face polyhedron of the 18 unit lattice directions ([Steele2009] sec. 4.1,
+// docs/model.md sec. 4): a direction is written as barycentric weights on the three lattice directions of
 // the face its ray hits.
 #pragma once
 

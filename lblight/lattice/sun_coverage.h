@@ -1,4 +1,4 @@
-// Which base solutions a relighting can ever select (spec sec. 4, 001 sec. 4.1), given what a
+// Which base solutions a relighting can ever select (docs/model.md sec. 4, [Steele2009] sec. 4.1), given what a
 // scene declares about its sun and how its instances may be rotated. Base solution j (1..18) is
 // needed when some allowed sun puts a non-zero weight on lattice direction j; B_0 when ambient
 // light is wanted.

@@ -1,4 +1,4 @@
-// Leaf ("green") or wood ("brown") per mesh part, by name patterns (001 sec. 4.1: a node is brown
+// Leaf ("green") or wood ("brown") per mesh part, by name patterns ([Steele2009] sec. 4.1: a node is brown
 // when wood occupies more of it than leaves, so every triangle must be one or the other).
 #pragma once
 

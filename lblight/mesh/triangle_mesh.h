@@ -1,6 +1,6 @@
 // A triangle soup as read from a mesh file: shared vertices, triangles, and for every triangle
 // the named part (object, group, material) it came from, so that leaf ("green") and wood
-// ("brown") triangles can be told apart by name (001 sec. 4.1).
+// ("brown") triangles can be told apart by name ([Steele2009] sec. 4.1).
 #pragma once
 
 #include <array>

@@ -1,8 +1,8 @@
-// Mesh to density grid (001 sec. 5.1): every triangle is intersected exactly with a fine grid of
+// Mesh to density grid ([Steele2009] sec. 5.1): every triangle is intersected exactly with a fine grid of
 // resolution x supersample cells along the longest edge, and the fine grid is box-filtered down
 // to `resolution`: a node's density is the fraction of its supersample^3 fine cells that some
 // triangle touches. A node is brown (wood) when more of its fine cells are touched by wood
-// triangles than by leaf triangles (001 sec. 4.1). docs/voxelization.md has the details.
+// triangles than by leaf triangles ([Steele2009] sec. 4.1). docs/voxelization.md has the details.
 #pragma once
 
 #include <array>

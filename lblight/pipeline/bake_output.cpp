@@ -216,7 +216,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["peak_memory_bytes"] = peak_bytes_;
   model["solutions"] = nlohmann::json::array();
 
-  // Haar-compressed streams next to the .vdb when the scene asks for them (spec sec. 7).
+  // Haar-compressed streams next to the .vdb when the scene asks for them (docs/model.md sec. 7).
   const LbhOutputSpec& lbh = plan_.scene->output.lbh;
   const std::string lbh_name = mp.spec->name + ".lbh";
   std::vector<LbhEncoded> encoded;
@@ -246,7 +246,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     s["grid"] = r.plan.grid_name;
     s["file"] = model["file"];
     s["iterations"] = r.iterations;
-    if (r.plan.derived) s["derived"] = "sum of B01..B18 (spec sec. 4); iterations: the largest of theirs";
+    if (r.plan.derived) s["derived"] = "sum of B01..B18 (docs/model.md sec. 4); iterations: the largest of theirs";
     s["seconds"] = r.seconds;
     s["error_estimate"] = finite_or_null(r.error_estimate);
     s["error_estimate_max"] = finite_or_null(r.error_estimate_max);

@@ -1,4 +1,4 @@
-// Mesh density sources (voxelised triangle meshes, 001 sec. 5.1): read, classify leaf / wood by
+// Mesh density sources (voxelised triangle meshes, [Steele2009] sec. 5.1): read, classify leaf / wood by
 // name, voxelise. Shared by the scene's `mesh` source and `lblight voxelize`.
 #pragma once
 

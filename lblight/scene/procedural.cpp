@@ -144,7 +144,7 @@ ModelGrid make_plant(const ProceduralSource& s) {
   const double half_x = 0.5 * (g.dims.nx - 1), half_y = 0.5 * (g.dims.ny - 1);
 
   // 3x3x3 samples per node give partial occupancy for wood; leaves are a noise-modulated
-  // density inside each cluster (a "leaf cloud", 000 sec. 3.2.2).
+  // density inside each cluster (a "leaf cloud", [Geist2010] sec. 3.2.2).
   for (int k = 0; k < g.dims.nz; ++k)
     for (int j = 0; j < g.dims.ny; ++j)
       for (int i = 0; i < g.dims.nx; ++i) {
@@ -180,14 +180,14 @@ ModelGrid make_plant(const ProceduralSource& s) {
         leaf = std::clamp(leaf, 0.0, 0.8);
         const std::size_t idx = g.dims.index(i, j, k);
         g.density[idx] = static_cast<float>(std::min(1.0, wood + leaf * (1.0 - wood)));
-        // brown where wood occupies more of the cell than leaves (001 sec. 4.1)
+        // brown where wood occupies more of the cell than leaves ([Steele2009] sec. 4.1)
         g.material[idx] = wood > leaf * (1.0 - wood) ? kMaterialWood : kMaterialMedium;
       }
   g.description = "procedural plant, resolution " + std::to_string(r) + ", seed " + std::to_string(s.seed);
   return g;
 }
 
-// A cube of uniform density 1 (scale it with density_scale): the spec's convergence example
+// A cube of uniform density 1 (scale it with density_scale): the convergence example of docs/model.md sec. 5
 // (sec. 5) and a clean test medium.
 ModelGrid make_box(const ProceduralSource& s) {
   ModelGrid g;

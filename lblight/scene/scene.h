@@ -70,7 +70,7 @@ struct LightingSpec {
   LightingMode mode = LightingMode::Base;
   std::vector<int> solutions;  // base: indices 0..18 to bake (sorted, unique)
   bool solutions_from_sun = true;  // base: `solutions` follow from `sun_constraints` ("auto")
-  SunConstraints sun_constraints;  // base: what relighting may ask for (spec sec. 4)
+  SunConstraints sun_constraints;  // base: what relighting may ask for (docs/model.md sec. 4)
   bool ambient_from_sum = true;    // base: B_0 as the sum of B_1..B_18 when all of those run
   Vec3d toward_sun{0, 0, 1};   // static: unit vector toward the sun
   double intensity = 1.0;      // static: sun intensity s

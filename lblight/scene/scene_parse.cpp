@@ -79,7 +79,7 @@ bool valid_name(const std::string& s) {
   return s != "." && s != "..";
 }
 
-// sigma_a, sigma_s, g: one number for all channels or [r, g, b]; checked per spec sec. 6.
+// sigma_a, sigma_s, g: one number for all channels or [r, g, b]; checked per docs/model.md sec. 6.
 void read_channel_values(const JsonReader& mat, const std::string& key, const std::string& material_name,
                          Material& m) {
   const JsonReader v = mat.child(key);
@@ -260,7 +260,7 @@ Vec3d read_sun(const JsonReader& sun) {
 }
 
 // Base lighting: which solutions to bake, either listed ("all", "0,1,5-7", [0, 6]) or "auto":
-// the ones the declared sun range, fixed sun and instance rotation can select (spec sec. 4).
+// the ones the declared sun range, fixed sun and instance rotation can select (docs/model.md sec. 4).
 void read_base_lighting(const JsonReader& r, LightingSpec& l) {
   r.only_keys({"mode", "solutions", "sun_range", "sun", "instance_rotation", "ambient", "ambient_from_sum"});
   l.mode = LightingMode::Base;

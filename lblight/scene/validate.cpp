@@ -72,7 +72,7 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
                           ": rho * sigma_t = " + message_number(rst) + " (rho " + message_number(rho) +
                           ", sigma_t " + message_number(p.sigma_t()) +
                           "); allowed: rho * sigma_t < 2, where the LB diffusion coefficient " +
-                          "((2 / sigma_t) - 1) / (4 (1 + sigma_a)) of 000 eq. (4) stays positive",
+                          "((2 / (rho sigma_t)) - 1) / (4 (1 + sigma_a)) of [Geist2010] eq. (4) stays positive",
                       where);
       }
       // rho * sigma_t < 2 is not enough with backscattering (g < 0): a uniform region of this
@@ -93,7 +93,7 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       if (gain < 0.0)
         warnings.push_back("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
                            ": 1 + rho * Omega_mm = " + message_number(gain) +
-                           " < 0, so values can go negative (spec sec. 6), in transients and, with absorption, " +
+                           " < 0, so values can go negative (docs/model.md sec. 6), in transients and, with absorption, " +
                            "in the converged result (docs/stability.md)");
     }
   }

@@ -1,6 +1,6 @@
-// The rules of spec sec. 6 that need a loaded grid: finite densities in [0, 1] after the
+// The rules of docs/model.md sec. 6 that need a loaded grid: finite densities in [0, 1] after the
 // scene's density_scale, and rho * sigma_t < 2 everywhere (the LB diffusion coefficient of
-// 000 eq. (4) must stay positive). Violations throw Error(InvalidInput); soft problems become
+// [Geist2010] eq. (4) must stay positive). Violations throw Error(InvalidInput); soft problems become
 // warnings.
 #pragma once
 

@@ -46,7 +46,7 @@ class BatchRunner {
     t0_ = Clock::now();
   }
 
-  // Plain iteration x <- T(x) with checks every K steps (spec sec. 5).
+  // Plain iteration x <- T(x) with checks every K steps (docs/model.md sec. 5).
   BatchOutcome plain() {
     const StepPolicy& pol = mp_.steps;
     const bool fixed = pol.mode != IterationMode::Auto;
@@ -156,7 +156,7 @@ struct SystemRef {
   int channel;   // index into mp.channels
 };
 
-// B_0 assembled from the directional solutions as they finish (spec sec. 4). Interior nodes:
+// B_0 assembled from the directional solutions as they finish (docs/model.md sec. 4). Interior nodes:
 // the sum; boundary nodes: B_0's own fixed total, 19 (the sum of its boundary values, where the
 // directional ones give 1 each). Error bound: ||sum e_j|| <= sum eps_j ||B_j||, over ||B_0||.
 class AmbientSum {

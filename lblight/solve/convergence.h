@@ -1,4 +1,4 @@
-// Error estimate for the plain LB iteration f <- A f + b (spec sec. 5). Totals are measured
+// Error estimate for the plain LB iteration f <- A f + b (docs/model.md sec. 5). Totals are measured
 // every K steps. Once the changes shrink geometrically with ratio r per interval, the distance
 // to the fixed point is the tail of that series: change * r / (1 - r). The estimate is given only
 // once the ratio has settled (successive ratios agree to a fraction of 1 - r): while faster modes

@@ -83,7 +83,7 @@ struct BakePlan {
   std::vector<std::string> warnings;
 };
 
-// Loads every model's grid, validates it (spec sec. 6) and lays out the work. Loading and
+// Loads every model's grid, validates it (docs/model.md sec. 6) and lays out the work. Loading and
 // voxelising stop with Error(Cancelled) once ctx.cancel is set.
 BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {}, const RunContext& ctx = {});
 
@@ -92,7 +92,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {}, cons
 // boundary light it saw before: outside the occupied box light only streams.
 ModelGrid crop_to_occupied(const ModelGrid& grid);
 
-// The lattice for a grid: grown by `margin` empty nodes on every side (spec sec. 4).
+// The lattice for a grid: grown by `margin` empty nodes on every side (docs/model.md sec. 4).
 LatticeGeometry build_lattice(const ModelGrid& grid, int margin);
 
 std::string base_grid_name(int index);  // "B07"

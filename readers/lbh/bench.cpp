@@ -2,7 +2,7 @@
 // float RGB array, x fastest, decoded from the stream), single-threaded on the CPU.
 //   lbh_bench FILE.lbh [--samples N] [--solution INDEX]
 // Reports samples per second for: the dense grid (trilinear, 8 nodes), the stream's sampler
-// (lbh::sample_index: one mask, one offset, the block's kept coefficients), 001's method (decode
+// (lbh::sample_index: one mask, one offset, the block's kept coefficients), [Steele2009]'s method (decode
 // the whole 4^3 sub-block, then blend 8 values), and relighting (3 directional solutions +
 // ambient) from the stream vs from dense grids. Positions: uniformly random in the lattice
 // ("incoherent", like scattered secondary rays) and along random rays in steps of half a node
@@ -53,7 +53,7 @@ inline lbh::Rgb dense_sample(const Dense& d, float x, float y, float z) {
   return out;
 }
 
-// 001 sec. 5.3: decode the whole sub-block, then blend the cell's 8 values.
+// [Steele2009] sec. 5.3: decode the whole sub-block, then blend the cell's 8 values.
 inline lbh::Rgb block_sample(const lbh::Lattice& L, const lbh::SolutionView& v, float x, float y, float z) {
   float p[3] = {x - L.index_min[0], y - L.index_min[1], z - L.index_min[2]};
   int b[3], l[3];
@@ -151,7 +151,7 @@ int main(int argc, char** argv) {
   float sink = 0;
   std::printf("%-34s %16s %16s\n", "method", "incoherent (M/s)", "coherent (M/s)");
   const char* names[3] = {"dense float RGB grid (uncompressed)", "lbh::sample_index (compressed)",
-                          "decode 4^3 block + blend (001)"};
+                          "decode 4^3 block + blend ([Steele2009])"};
   double rates[3][2];
   for (int k = 0; k < 2; ++k) {
     const std::vector<float>& pos = k == 0 ? incoherent : coherent;

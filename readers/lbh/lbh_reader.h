@@ -177,7 +177,7 @@ LBH_HOSTDEV inline int lowest_bit(std::uint64_t m) {  // m != 0
 }
 
 // ------------------------------------------------------------------------------------------------
-// Haar transform (001 sec. 2.3): unnormalised filters (x0 + x1) / 2 and (x0 - x1) / 2, two levels.
+// Haar transform ([Steele2009] sec. 2.3): unnormalised filters (x0 + x1) / 2 and (x0 - x1) / 2, two levels.
 // 1D on 4 values: [x0 x1 x2 x3] -> [A D d0 d1] with s0 = (x0+x1)/2, s1 = (x2+x3)/2,
 // d0 = (x0-x1)/2, d1 = (x2-x3)/2, A = (s0+s1)/2, D = (s0-s1)/2. Example: [4 19 44 0] ->
 // [16.75 -5.25 -7.5 22]. Inverse: s0 = A+D, s1 = A-D, x = [s0+d0, s0-d0, s1+d1, s1-d1].
@@ -282,9 +282,9 @@ LBH_HOSTDEV inline void decode_block(const SolutionView& s, std::uint64_t b, Rgb
 }
 
 // ------------------------------------------------------------------------------------------------
-// Trilinear sampling (001 eqs. 4.4-4.5; docs/lbh-format.md sec. 4). A lattice-relative position u
+// Trilinear sampling ([Steele2009] eqs. 4.4-4.5; docs/lbh-format.md sec. 4). A lattice-relative position u
 // (node i at u = i) is clamped to [0, n - 1] per axis (NaN -> 0); the cell is i = min(floor(u), n - 2)
-// (0 when n = 1) with fraction a = u - i, blended from nodes i and i + 1. 001's texel convention
+// (0 when n = 1) with fraction a = u - i, blended from nodes i and i + 1. [Steele2009]'s texel convention
 // (texel i centred at i + 0.5, x_B = max(0, p - 0.5)) is the same with p = u + 0.5; the far edge is
 // clamped here as well. The cell lies in sub-block i / 3 at local offset i - 3 (i / 3) in 0..2.
 
@@ -389,11 +389,11 @@ LBH_HOSTDEV inline Rgb sample_world(const Lattice& L, const SolutionView& s, flo
 }
 
 // ------------------------------------------------------------------------------------------------
-// Relighting (spec sec. 4, 001 sec. 4.2): for sunlight travelling along d, the ray from the origin
+// Relighting (docs/model.md sec. 4, [Steele2009] sec. 4.2): for sunlight travelling along d, the ray from the origin
 // along d hits one of the 32 faces of the polyhedron of the 18 unit lattice directions; with its
 // barycentric weights (w_a, w_b, w_c) the light is s (w_a B_a + w_b B_b + w_c B_c) + a B_0.
 
-// D3Q19 directions in the order of spec sec. 1 (packed as c + 1, two bits per direction).
+// D3Q19 directions in the order of docs/model.md sec. 1 (packed as c + 1, two bits per direction).
 LBH_HOSTDEV inline int lattice_cx(int m) { return static_cast<int>((0x1548889549ull >> (2 * m)) & 3ull) - 1; }
 LBH_HOSTDEV inline int lattice_cy(int m) { return static_cast<int>((0x895609495ull >> (2 * m)) & 3ull) - 1; }
 LBH_HOSTDEV inline int lattice_cz(int m) { return static_cast<int>((0x20a0954955ull >> (2 * m)) & 3ull) - 1; }

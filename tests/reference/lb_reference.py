@@ -1,9 +1,9 @@
-"""An independent implementation of the lblight solver contract (spec secs. 1-4), written from
-the specification alone with NumPy, in float64. Used by check_bake.py to verify `lblight bake`
+"""An independent implementation of the lblight solver contract (docs/model.md secs. 1-4), written from
+that document alone with NumPy, in float64. Used by check_bake.py to verify `lblight bake`
 outputs read back through OpenVDB's own Python module."""
 import numpy as np
 
-# spec sec. 1: D3Q19 order
+# docs/model.md sec. 1: D3Q19 order
 C = np.array([
     (0, 0, 0), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1),
     (1, 1, 0), (-1, -1, 0), (1, -1, 0), (-1, 1, 0), (1, 0, 1), (-1, 0, -1),
@@ -12,7 +12,7 @@ W = np.array([0.0] + [1 / 12] * 6 + [1 / 24] * 12)
 
 
 def phase(g, i, j):
-    """Discrete Henyey-Greenstein p_ij (000 eq. 9) with the |g| = 1 limit (spec sec. 2)."""
+    """Discrete Henyey-Greenstein p_ij ([Geist2010] eq. 9) with the |g| = 1 limit (docs/model.md sec. 2)."""
     ni = C[i] / np.linalg.norm(C[i])
     nj = C[j] / np.linalg.norm(C[j])
     cos = float(np.dot(ni, nj))
@@ -24,7 +24,7 @@ def phase(g, i, j):
 
 
 def omega(sigma_a, sigma_s, g):
-    """Collision matrix of 000 eqs. (5)-(8)."""
+    """Collision matrix of [Geist2010] eqs. (5)-(8)."""
     sigma_t = sigma_a + sigma_s
     om = np.zeros((19, 19))
     om[0, 0] = -1.0
