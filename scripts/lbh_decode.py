@@ -6,7 +6,7 @@
     lbh_decode.py FILE.lbh --dump                  JSON: every decoded node of every solution
     lbh_decode.py FILE.lbh --check-vdb OUT.vdb     compare decoded nodes with a .vdb (needs pyopenvdb)
 
-It shares no code with lblight's C++ reader; tests/test_lbh_io.cpp runs it against the reader to
+It shares no code with lblight's C++ reader; tests/compress/test_lbh_io.cpp runs it against the reader to
 keep the format document honest.
 """
 import json

@@ -1,7 +1,8 @@
 // What one GPU thread does, as LBL_HOSTDEV functions over plain arguments. The CUDA/HIP kernels
-// in cuda_backend.cu are thin wrappers around these, and tests/test_gpu_emulated.cpp runs the
-// very same functions over an emulated grid on the CPU, so indexing, inflow and reductions are
-// checked even on machines without a GPU. The physics itself is lattice/collide.h.
+// in cuda_backend.cu are thin wrappers around these, and tests/backend/emulated_gpu.cpp runs the
+// very same functions over emulated launch grids on the CPU, so indexing, inflow and reductions are
+// checked even on machines without a GPU. The physics itself is lattice/collide.h, the other
+// per-node rules backend/node_rules.h.
 #pragma once
 
 #include <cstddef>

@@ -32,7 +32,7 @@ OmegaMatrix build_omega(const OpticalParams& params);
 // ((2 / (rho sigma_t)) - 1) / (4 (1 + sigma_a)). The density scales f_0's release (Omega_00 = -1)
 // as much as what feeds it (sigma_a), so f_0 holds sigma_a times the moving mass at any rho and
 // light rests there a fraction sigma_a / (1 + sigma_a) of the time: 1 + sigma_a, not
-// 1 + rho sigma_a (measured, tests/test_diffusion.cpp). A material that absorbs (dumps f_0)
+// 1 + rho sigma_a (measured, tests/lattice/test_diffusion.cpp). A material that absorbs (dumps f_0)
 // has no resting light: ((2 / (rho sigma_t)) - 1) / 4. Infinite for rho sigma_t = 0.
 double diffusion_coefficient(const OpticalParams& params, double rho = 1.0, bool absorbs = false);
 

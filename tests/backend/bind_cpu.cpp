@@ -3,7 +3,7 @@
 // systems split into groups of threads) and with every system of a batch on each thread.
 #include "tests/backend/conformance.h"
 #include "tests/backend/emulated_gpu.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 namespace lblight::test {
 

@@ -12,7 +12,7 @@
 #include "lblight/lattice/sun.h"
 #include "lblight/solve/krylov.h"
 #include "tests/backend/conformance.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
@@ -178,9 +178,9 @@ TEST_CASE("Every backend's measure() reports the f_0 reservoir deficit of the no
       }
 }
 
-TEST_CASE("BiCGStab reaches the plain iteration's fixed point", "[conformance][krylov]") {
+TEST_CASE("BiCGStab reaches the plain iteration's fixed point", "[conformance][krylov][slow]") {
   // densities kept away from 0: a nearly empty node that keeps f_0 relaxes at rate rho per step,
-  // which neither method reaches in a test's time (test_extreme.cpp covers that case)
+  // which neither method reaches in a test's time (tests/solve/test_extreme.cpp covers that case)
   const LatticeGeometry g = random_lattice({17, 15, 13}, 0.95f, 0.15, 31, 0.3f);
   for (const BoundBackend& b : conformance_backends()) {
     if (!b.backend->supports(Precision::Float64)) {
@@ -209,7 +209,7 @@ TEST_CASE("BiCGStab reaches the plain iteration's fixed point", "[conformance][k
   }
 }
 
-TEST_CASE("BiCGStab in float32 reaches 1e-4 on a dense cube in a fraction of the plain steps", "[conformance][krylov]") {
+TEST_CASE("BiCGStab in float32 reaches 1e-4 on a dense cube in a fraction of the plain steps", "[conformance][krylov][slow]") {
   // docs/model.md sec. 5: density 1, cloud parameters with g = 0; plain iteration needs ~33N steps
   const LatticeGeometry g = uniform_lattice({26, 26, 26}, 1.0f);
   const auto ch = channel({0.008, 0.792, 0.0}, false);

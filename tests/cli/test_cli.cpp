@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "lblight/io/vdb_io.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
@@ -143,7 +143,7 @@ TEST_CASE("bake and report replace only their own earlier output, never a folder
   CHECK(read_text(tmp / "ext" / "src" / "main.js") == "code");
 }
 
-TEST_CASE("A signal stops a bake with exit 130 and leaves nothing behind", "[cli]") {
+TEST_CASE("A signal stops a bake with exit 130 and leaves nothing behind", "[cli][slow]") {
   TempDir tmp;
   write_text(tmp / "slow.json", R"({"version": 1, "models": [{"name": "c", "material": "cloud",
       "density": {"type": "procedural", "resolution": 40}}], "solver": {"iterations": 1000000}})");

@@ -6,7 +6,7 @@
 
 #include "backends/cuda/lb_device.h"
 #include "lblight/core/error.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 

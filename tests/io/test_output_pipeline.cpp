@@ -18,8 +18,8 @@
 #include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/io/vdb_stream_writer.h"
-#include "tests/expect_error.h"
-#include "tests/test_support.h"
+#include "tests/support/expect_error.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;

@@ -16,8 +16,8 @@
 #include "lblight/mesh/voxelize.h"
 #include "lblight/scene/load_model.h"
 #include "lblight/scene/mesh_source.h"
-#include "tests/expect_error.h"
-#include "tests/test_support.h"
+#include "tests/support/expect_error.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;

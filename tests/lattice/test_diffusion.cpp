@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "lblight/lattice/d3q19.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
@@ -56,7 +56,7 @@ double measured_diffusion(const OpticalParams& p, double rho = 1.0, bool absorb 
 
 }  // namespace
 
-TEST_CASE("Measured diffusion coefficient matches Geist2010 eq. (4) within 1%, also at density 0.5", "[diffusion]") {
+TEST_CASE("Measured diffusion coefficient matches Geist2010 eq. (4) within 1%, also at density 0.5", "[diffusion][slow]") {
   for (OpticalParams p : {OpticalParams{0.008, 0.792, 0.0}, OpticalParams{0.1, 0.6, 0.0}, OpticalParams{0.3, 1.2, 0.0}}) {
     const double want = diffusion_coefficient(p);
     const double got = measured_diffusion(p);

@@ -8,8 +8,8 @@
 #include "lblight/scene/load_model.h"
 #include "lblight/scene/scene.h"
 #include "lblight/solve/plan.h"
-#include "tests/expect_error.h"
-#include "tests/test_support.h"
+#include "tests/support/expect_error.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using lblight::test::expect_invalid_input;

@@ -8,7 +8,7 @@
 #include "lblight/lattice/collide.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/lattice/omega.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using d3q19::kQ;

@@ -5,7 +5,7 @@
 //
 // Accuracy is "relative to max(|ref|, 1e-3 * max |ref|)": relative where there is light, and
 // scaled absolute in deep shadow, where float32 cannot hold a relative 1e-5 of a value 1e-6
-// times smaller than its neighbours' (the same convention as tests/test_transport.cpp).
+// times smaller than its neighbours' (the same convention as tests/lattice/test_transport.cpp).
 #include <catch2/catch.hpp>
 
 #include <chrono>
@@ -24,8 +24,8 @@
 #include "lblight/lattice/sun.h"
 #include "lblight/scene/scene.h"
 #include "lblight/scene/validate.h"
-#include "tests/expect_error.h"
-#include "tests/test_support.h"
+#include "tests/support/expect_error.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
@@ -165,7 +165,7 @@ TEST_CASE("rho*sigma_t = 1.999: finite, float32 within 1e-5 of the reference (no
 // absorbing leaf converges to totals below -0.3 x the largest (measured -0.36 to -0.88), float32
 // within 1e-5 (normwise) of float64 there.
 TEST_CASE("rho*sigma_t = 1.999: transients >= -1 x max, converged: scattering > 0, absorbing leaf < 0 (the scheme)",
-          "[extreme][stiff]") {
+          "[extreme][stiff][slow]") {
   const LatticeGeometry g = random_lattice({10, 10, 10}, 1.0f, 0.2, 8, 0.9f);
   const auto backend = one_thread();
   double transient = 0;
@@ -245,7 +245,7 @@ TEST_CASE("No sec. 6 warning (1 + rho Omega_mm >= 0): totals >= -1e-6 max at eve
 // g = -1 (rho sigma_t = 1.9) grows by 2.6 per step. Validation now also rejects a spectral radius
 // of 1 + rho Omega above 1. Expect: what it rejects blows up (> 1e6 within 200 steps on a uniform
 // lattice) and what it accepts stays bounded (< 100 with boundary values summing to 19); the CLI
-// check is in tests/test_cli.cpp ("Every validation rule of docs/model.md sec. 6").
+// check is in tests/cli/test_cli.cpp ("Every validation rule of docs/model.md sec. 6").
 TEST_CASE("Backscattering: spectral radius > 1 diverges and is rejected, radius 1 stays bounded",
           "[extreme][stiff][validate]") {
   const LatticeGeometry g = uniform_lattice({12, 12, 12}, 1.0f);
@@ -408,7 +408,7 @@ TEST_CASE("Density 1e-7: totals and the medium's own contribution (f_0) match th
 // and none is at density 1e-7; flushing changes the faint totals by less than 1e-6 relative +
 // 1e-36 absolute (1e-6 of the boundary light). Timings (best of 3 x 20 steps, one thread, 40^3)
 // are printed, not asserted: the machine is shared.
-TEST_CASE("CPU steps flush subnormals to 0, leave the caller's FP mode alone, and are timed", "[extreme][ftz]") {
+TEST_CASE("CPU steps flush subnormals to 0, leave the caller's FP mode alone, and are timed", "[extreme][ftz][slow]") {
   const Dims d{40, 40, 40};
   const auto backend = one_thread();
   struct Scene {
@@ -529,7 +529,7 @@ TEST_CASE("Density jumps 0 -> 1, one-node slabs, 3-node edges: float32 matches t
                                                                                    << worst[1]);
 }
 
-TEST_CASE("Non-cubic 8x64x200 lattice: float32 matches the reference to 1e-5 after 400 steps", "[extreme][geometry]") {
+TEST_CASE("Non-cubic 8x64x200 lattice: float32 matches the reference to 1e-5 after 400 steps", "[extreme][geometry][slow]") {
   const LatticeGeometry g = random_lattice({8, 64, 200}, 1.0f, 0.15, 17);
   const auto ch = channel({0.109, 0.891, -0.12}, true, {0.109, 0.891, -1.0}, false);
   Range r;
@@ -541,11 +541,11 @@ TEST_CASE("Non-cubic 8x64x200 lattice: float32 matches the reference to 1e-5 aft
 
 // ---------------------------------------------------------------------------------------------
 // 6. 100k steps on a tiny lattice, float32 against float64 (both on the CPU backend, whose
-// float64 matches the reference to 1e-12 in test_transport.cpp). Expect: finite, and the float32
+// float64 matches the reference to 1e-12 in tests/lattice/test_transport.cpp). Expect: finite, and the float32
 // totals within 1e-5 of float64 (pointwise, as elsewhere) at 1k, 10k and 100k steps, i.e. no
 // accumulating drift (measured at most 1.0e-6). The float64 change from 10k to 100k steps is
 // printed to show how far from converged each case was at 10k.
-TEST_CASE("100k steps on 8^3: float32 stays within 1e-5 of float64 (no drift)", "[extreme][long]") {
+TEST_CASE("100k steps on 8^3: float32 stays within 1e-5 of float64 (no drift)", "[extreme][long][slow]") {
   const LatticeGeometry g = random_lattice({8, 8, 8}, 1.0f, 0.2, 31);
   const auto backend = one_thread();
   const std::pair<const char*, ChannelMaterials> cases[] = {
@@ -649,7 +649,7 @@ TEST_CASE("Float32 backend at steady state: inflow = outflow + absorbed to 1e-6"
 }
 
 // ---------------------------------------------------------------------------------------------
-// 8. Spec sec. 6 rejections not already covered by test_cli.cpp and test_scene.cpp: a negative
+// 8. Spec sec. 6 rejections not already covered by tests/cli/test_cli.cpp and tests/scene/test_scene.cpp: a negative
 // density voxel, rho * sigma_t exactly 2 (and 1.999 accepted with the sec. 6 warning), wood
 // over the limit, backscattering wood that would diverge (and the same at its limit accepted),
 // a negative density_scale, a NaN token, an out-of-range g in one channel, and a

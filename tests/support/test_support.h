@@ -1,5 +1,5 @@
-// Helpers shared by the tests: a literal reference implementation of the update rule of
-// docs/model.md sec. 3, lattice builders, temporary folders and running the CLI.
+// Helpers shared by the tests: lattice builders, solving helpers, temporary folders and running
+// the CLI. The literal reference LB is tests/support/reference_lattice.h (included here).
 #pragma once
 
 #include <array>
@@ -14,46 +14,9 @@
 #include "lblight/solve/bake.h"
 #include "lblight/solve/plan.h"
 #include "lblight/lattice/omega.h"
+#include "tests/support/reference_lattice.h"
 
 namespace lblight::test {
-
-// Where the interior's light goes in one step of docs/model.md sec. 3, for a state f (19 * count values,
-// direction-major, boundary nodes holding their fixed values). With S = sum of f over interior
-// nodes, the update conserves sum_m f~_m at every node (the columns of Omega sum to 0), so
-//   S(t+1) = S(t) + inflow - outflow - absorbed
-// exactly, up to rounding.
-struct StepBalance {
-  double stored = 0;    // S(t): sum of f over interior nodes before the step
-  double inflow = 0;    // post-collision values boundary nodes push into interior nodes
-  double outflow = 0;   // post-collision values interior nodes push into boundary nodes (dropped)
-  double absorbed = 0;  // f_0 that absorbing interior nodes dump (f~_0 = 0)
-  double predicted_next() const { return stored + inflow - outflow - absorbed; }
-};
-// Evaluates the step in double with the dense Omega of each material.
-StepBalance step_balance(const LatticeGeometry& g, const std::vector<OmegaMatrix>& omega_per_material,
-                         const std::vector<bool>& absorbs, const std::vector<double>& f);
-// Sum of f over interior nodes.
-double interior_sum(const Dims& d, const std::vector<double>& f);
-
-// Spec sec. 3, written as plainly as possible: dense Omega in double, every node (boundary
-// included) collides and pushes, only interior targets are written, boundary values fixed.
-class ReferenceLattice {
- public:
-  ReferenceLattice(const LatticeGeometry& g, const std::vector<OmegaMatrix>& omega_per_material,
-                   const std::vector<bool>& absorbs, const std::array<double, 19>& boundary);
-  void step(int n = 1);
-  std::vector<double> totals() const;
-  std::vector<double>& state() { return f_; }
-  const std::vector<double>& state() const { return f_; }
-  StepBalance balance() const { return step_balance(g_, omega_, absorbs_, f_); }  // of the next step
-  double stored() const { return interior_sum(g_.dims, f_); }
-
- private:
-  LatticeGeometry g_;
-  std::vector<OmegaMatrix> omega_;
-  std::vector<bool> absorbs_;
-  std::vector<double> f_;
-};
 
 LatticeGeometry uniform_lattice(Dims d, float rho);  // boundary layer empty
 // Random densities in [min_rho, max_rho] on the interior (a fifth of the nodes empty), wood

@@ -9,7 +9,7 @@
 #include "lblight/core/relative_gap.h"
 #include "lblight/lattice/sun.h"
 #include "tests/backend/emulated_gpu.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;

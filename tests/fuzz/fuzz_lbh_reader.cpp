@@ -1,7 +1,7 @@
 // libFuzzer target for readers/lbh/lbh_reader.h: any byte string must either be rejected with a
 // message or open as a stream that decodes and samples without reading out of bounds.
 // Built with -DLBH_FUZZ_IGNORE_CHECKSUMS so mutated inputs get past the CRC-32 checks and reach the
-// structural checks behind them (the checksums are tested by tests/test_haar.cpp).
+// structural checks behind them (the checksums are tested by tests/reader/test_lbh_reader.cpp).
 //   clang++ -std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -DLBH_FUZZ_IGNORE_CHECKSUMS -I. \
 //       tests/fuzz_lbh_reader.cpp -o fuzz_lbh_reader && ./fuzz_lbh_reader -max_total_time=60 tests/fuzz/corpus
 #include <cmath>

@@ -8,7 +8,7 @@
 #include "lblight/solve/convergence.h"
 #include "lblight/solve/krylov.h"
 #include "lblight/solve/report.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;

@@ -11,8 +11,8 @@
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/scene/load_model.h"
-#include "tests/expect_error.h"
-#include "tests/test_support.h"
+#include "tests/support/expect_error.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;

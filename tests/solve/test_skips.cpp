@@ -15,7 +15,7 @@
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/solve/bake.h"
 #include "lblight/solve/plan.h"
-#include "tests/test_support.h"
+#include "tests/support/test_support.h"
 
 using namespace lblight;
 using namespace lblight::test;
@@ -104,7 +104,7 @@ TEST_CASE("Sun above the horizon with yaw-only instances needs 13 directions and
   CHECK(got == brute_force_band(0, 90, true));
 }
 
-TEST_CASE("The needed directions match a brute-force sweep of suns", "[skips][sun]") {
+TEST_CASE("The needed directions match a brute-force sweep of suns", "[skips][sun][slow]") {
   for (auto [e0, e1] : {std::pair{10.0, 50.0}, {30.0, 30.0}, {45.0, 45.0}, {-20.0, 5.0}, {60.0, 90.0}, {0.0, 0.0}}) {
     SunConstraints c;
     c.min_elevation = e0;
