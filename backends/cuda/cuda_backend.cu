@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "backends/cuda/gpu_runtime.h"
+#include "backends/cuda/gpu_solver.h"
 #include "backends/cuda/lb_device.h"
 #include "lblight/core/error.h"
 #include "lblight/lattice/collision_op.h"
@@ -34,8 +35,8 @@ namespace gpu {
 
 template <>
 struct Storage<gpu_half> {
-  __device__ static float load(gpu_half v) { return __half2float(v); }
-  __device__ static gpu_half store(float v) { return __float2half_rn(v); }
+  __host__ __device__ static float load(gpu_half v) { return __half2float(v); }
+  __host__ __device__ static gpu_half store(float v) { return __float2half_rn(v); }
 };
 
 // Batch tables in constant memory (one solver owns them at a time; see Solver::bind).
@@ -51,8 +52,6 @@ struct DeviceTables {
   __device__ float boundary(int s, int m) const { return c_boundary[s][m]; }
   __device__ const CollisionOp<float>& op(int c, int k) const { return c_ops[c][k]; }
 };
-
-constexpr int kReduceBlock = 256;
 
 // One thread per interior node and run of systems, as step_launch() lays them out (lb_device.h).
 template <typename T, bool OneRow>
@@ -108,8 +107,6 @@ __global__ void finish_dot_kernel(const double* partial, int blocks, double* out
   }
   if (threadIdx.x == 0) *out = shared[0];
 }
-
-constexpr int kVectorBlocks = 1024;  // grid of the vector kernels (grid-stride loops)
 
 // Totals at t = 0: interior 0, boundary nodes the sum of their fixed values.
 __global__ void init_totals_kernel(float* totals, Dims d, int systems) {
@@ -276,290 +273,87 @@ void launch_step(const BatchArgs<T>& a) {
   GPU_CHECK(gpuGetLastError());
 }
 
-template <typename T>
-class Solver final : public LatticeSolver, public KrylovVectors, public StateAccess {
+// The GPU behind gpu_solver.h: device memory, copies and the kernel launches above.
+class CudaDevice {
  public:
-  Solver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity)
-      : d_(g.dims), capacity_(capacity) {
-    check_geometry(g, "cuda");  // the step kernel picks its operator by the material byte
-    if (d_.ny - 2 > 65535 || d_.nz - 2 > 65535) throw_invalid("lattice too large for the CUDA launch grid");
-    if (static_cast<int>(channels.size()) > kMaxChannels || g.material_count > kMaxMaterials)
-      throw std::logic_error("cuda backend: too many channels or materials");
-    if (capacity_ < 1 || capacity_ > kMaxBatch) throw std::logic_error("cuda backend: batch capacity out of range");
-    for (std::size_t c = 0; c < channels.size(); ++c) {
-      for (int k = 0; k < g.material_count; ++k) ops_[c][k] = convert_op<float>(reduce_omega(channels[c].omega[k]));
-      unsigned bits = 0;
-      for (int k = 0; k < kMaxMaterials; ++k)
-        if (channels[c].absorbs[k]) bits |= 1u << k;
-      absorb_[c] = bits;
-    }
-    channel_count_ = static_cast<int>(channels.size());
-    GPU_CHECK(gpuGetDevice(&device_));  // the backend's, set by create()
-    count_ = d_.count();
-    stride_ = gpu_stride(d_);
-    density_.allocate(count_);
-    material_.allocate(count_);
-    GPU_CHECK(gpuMemcpy(density_.get(), g.density.data(), count_ * sizeof(float), gpuMemcpyHostToDevice));
-    GPU_CHECK(gpuMemcpy(material_.get(), g.material.data(), count_, gpuMemcpyHostToDevice));
-    state_.allocate(static_cast<std::size_t>(capacity_) * 2 * 19 * static_cast<std::size_t>(stride_));
-    totals_.allocate(static_cast<std::size_t>(capacity_) * count_);
-    const long long interior = static_cast<long long>(d_.interior_count());
-    reduce_blocks_ = static_cast<int>((interior + kReduceBlock - 1) / kReduceBlock);
-    partial_.allocate(static_cast<std::size_t>(reduce_blocks_) * capacity_ * kReduceSlots);
-    reduced_.allocate(static_cast<std::size_t>(capacity_) * kReduceSlots);
+  template <typename U>
+  using Buffer = DeviceBuffer<U>;
+
+  explicit CudaDevice(int device) : device_(device) {}
+  // The runtime's current device is per host thread: a solver created on one thread and driven
+  // from another (or after another device's work) must select its own before touching memory.
+  void use() const { GPU_CHECK(gpuSetDevice(device_)); }
+  void upload(void* dst, const void* src, std::size_t bytes) const {
+    GPU_CHECK(gpuMemcpy(dst, src, bytes, gpuMemcpyHostToDevice));
+  }
+  void download(void* dst, const void* src, std::size_t bytes) const {
+    GPU_CHECK(gpuMemcpy(dst, src, bytes, gpuMemcpyDeviceToHost));
+  }
+  void copy(void* dst, const void* src, std::size_t bytes) const {
+    GPU_CHECK(gpuMemcpy(dst, src, bytes, gpuMemcpyDeviceToDevice));
+  }
+  void zero(void* dst, std::size_t bytes) const { GPU_CHECK(gpuMemset(dst, 0, bytes)); }
+
+  // Puts the tables into constant memory unless this owner's are there already (constant memory
+  // is per device, and one solver drives a device at a time: bake, bench and tests do).
+  void bind(const void* owner, long long generation, const BatchTables& t) {
+    if (bound_tables_owner(device_) == owner && bound_generation_ == generation) return;
+    GPU_CHECK(gpuMemcpyToSymbol(c_ops, t.ops, sizeof(t.ops)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_absorb, t.absorb, sizeof(t.absorb)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_channel, t.channels, sizeof(t.channels)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_boundary, t.boundaries, sizeof(t.boundaries)));
+    GPU_CHECK(gpuMemcpyToSymbol(c_boundary_total, t.boundary_totals, sizeof(t.boundary_totals)));
+    bound_tables_owner(device_) = owner;
+    bound_generation_ = generation;
+  }
+  void unbind(const void* owner) {
+    if (bound_tables_owner(device_) == owner) bound_tables_owner(device_) = nullptr;
   }
 
-  ~Solver() override {
-    if (bound_tables_owner(device_) == this) bound_tables_owner(device_) = nullptr;
-  }
-
-  int capacity() const override { return capacity_; }
-
-  void reset(const std::vector<SystemSpec>& batch) override {
-    if (static_cast<int>(batch.size()) > capacity_) throw std::logic_error("batch larger than solver capacity");
-    for (const SystemSpec& s : batch)  // before taking the batch: its channels index constant tables
-      if (s.channel < 0 || s.channel >= channel_count_) throw std::logic_error("system channel out of range");
-    batch_ = batch;
-    ++batch_generation_;  // new tables for bind()
-    bind();
-    level_ = 0;
-    GPU_CHECK(gpuMemset(state_.get(), 0, state_.bytes()));
-    const BatchArgs<T> a = args();
-    init_totals_kernel<<<static_cast<unsigned>((count_ + kReduceBlock - 1) / kReduceBlock), kReduceBlock>>>(
-        totals_.get(), d_, a.systems);
-    GPU_CHECK(gpuGetLastError());
-    inflow(level_ptr(0, 1), false);  // what the boundary pushes arrives with the first step
-    inflow_pending_ = true;
-  }
-
-  void step(int steps) override {
-    bind();
-    for (int t = 0; t < steps; ++t) {
-      launch_step(args());
-      level_ = 1 - level_;
-      if (inflow_pending_) {
-        inflow(level_ptr(0, 1 - level_), false);
-        inflow_pending_ = false;
-      }
-    }
-  }
-
-  void measure(std::vector<Residual>& out) override {
-    out.clear();
-    if (batch_.empty()) return;  // a grid of 0 blocks is a launch error
-    bind();
-    const BatchArgs<T> a = args();
-    measure_kernel<T><<<static_cast<unsigned>(reduce_blocks_), kReduceBlock>>>(a, partial_.get());
-    GPU_CHECK(gpuGetLastError());
-    finish_reduce_kernel<<<static_cast<unsigned>(a.systems), kReduceBlock>>>(partial_.get(), reduce_blocks_,
-                                                                            a.systems, reduced_.get());
-    GPU_CHECK(gpuGetLastError());
-    std::vector<double> host(static_cast<std::size_t>(a.systems) * kReduceSlots);
-    GPU_CHECK(gpuMemcpy(host.data(), reduced_.get(), host.size() * sizeof(double), gpuMemcpyDeviceToHost));
-    for (int s = 0; s < a.systems; ++s) out.push_back(to_residual(host.data() + static_cast<std::size_t>(s) * kReduceSlots));
-  }
-
-  void read_totals(int system, float* out) const override {
-    use_device();
-    check_system(system);
-    GPU_CHECK(gpuMemcpy(out, totals_.get() + static_cast<std::size_t>(system) * count_, count_ * sizeof(float),
-                        gpuMemcpyDeviceToHost));
-  }
-
-  KrylovVectors* krylov_vectors() override { return this; }
-  StateAccess* state_access() override { return this; }
-
-  void read_state(int system, std::vector<double>& f) const override {
-    use_device();
-    check_system(system);
-    std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
-    GPU_CHECK(gpuMemcpy(raw.data(), level_ptr(system, level_), raw.size() * sizeof(T), gpuMemcpyDeviceToHost));
-    const SystemSpec& spec = batch_.at(static_cast<std::size_t>(system));
-    f.assign(19 * count_, 0.0);
-    for (int z = 0; z < d_.nz; ++z)
-      for (int y = 0; y < d_.ny; ++y)
-        for (int x = 0; x < d_.nx; ++x) {
-          const std::size_t i = d_.index(x, y, z);
-          const bool boundary = d_.is_boundary(x, y, z);
-          for (int m = 0; m < 19; ++m)
-            f[m * count_ + i] = boundary ? spec.boundary[m] : to_double(raw[m * static_cast<std::size_t>(stride_) + i]);
-        }
-  }
-
-  void write_state(int system, const std::vector<double>& f) override {
-    use_device();
-    check_system(system);
-    if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
-    std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
-    // Interior nodes only. Boundary nodes' slots are never read by a step, but a Krylov solve
-    // copies the state into its vectors, and the slots no step writes must stay 0 there (else
-    // y = A x keeps y's old values in them and A is no longer linear).
-    for (int z = 1; z < d_.nz - 1; ++z)
-      for (int y = 1; y < d_.ny - 1; ++y)
-        for (int x = 1; x < d_.nx - 1; ++x) {
-          const std::size_t i = d_.index(x, y, z);
-          for (int m = 0; m < 19; ++m) raw[m * static_cast<std::size_t>(stride_) + i] = from_double(f[m * count_ + i]);
-        }
-    GPU_CHECK(gpuMemcpy(level_ptr(system, level_), raw.data(), raw.size() * sizeof(T), gpuMemcpyHostToDevice));
-    bind();
-    inflow(level_ptr(0, 0), false);
-    inflow(level_ptr(0, 1), false);
-    inflow_pending_ = false;
-  }
-
-  // Krylov vectors, push form: a vector is a full state (f values) of system 0, boundary-fed
-  // entries included; A x leaves those entries 0, b = T(0) holds the boundary values there.
-  void vectors_reserve(int count) override {
-    use_device();
-    if (std::is_same_v<T, gpu_half>)
-      throw Error(ErrorCategory::Unavailable, "the Krylov solver needs float32 storage (not float16)");
-    const std::size_t first = vectors_.size();
-    if (static_cast<int>(first) >= count) return;
-    vectors_.resize(static_cast<std::size_t>(count));
-    for (std::size_t v = first; v < vectors_.size(); ++v) {
-      vectors_[v] = std::make_unique<DeviceBuffer<T>>(19 * static_cast<std::size_t>(stride_));
-      GPU_CHECK(gpuMemset(vectors_[v]->get(), 0, vectors_[v]->bytes()));
-    }
-    dot_partial_.allocate(kVectorBlocks + 1);
-  }
-  void vector_from_state(int v) override {
-    use_device();
-    GPU_CHECK(gpuMemcpy(vec(v), level_ptr(0, level_), vector_bytes(), gpuMemcpyDeviceToDevice));
-  }
-  void vector_to_state(int v) override {
-    bind();
-    GPU_CHECK(gpuMemcpy(level_ptr(0, level_), vec(v), vector_bytes(), gpuMemcpyDeviceToDevice));
-    inflow(level_ptr(0, 0), false);
-    inflow(level_ptr(0, 1), false);
-    inflow_pending_ = false;
-  }
-  void vector_step_offset(int v) override {
-    bind();
-    GPU_CHECK(gpuMemset(vec(v), 0, vector_bytes()));
-    inflow(vec(v), false, 1);
-  }
-  void vector_apply(int x, int y) override {
-    bind();
-    BatchArgs<T> a = args();
-    a.systems = 1;
-    a.cur = vec(x);
-    a.next = vec(y);
+  template <typename T>
+  void step(const BatchArgs<T>& a) const {
     launch_step(a);
-    inflow(vec(y), true, 1);
   }
-  void vector_axpby(double a, int x, double b, int y) override {
-    use_device();
-    axpby_kernel<T><<<kVectorBlocks, kReduceBlock>>>(static_cast<float>(a), vec(x), static_cast<float>(b), vec(y),
-                                                     19 * stride_);
-    GPU_CHECK(gpuGetLastError());
-  }
-  double vector_dot(int x, int y) override {
-    use_device();
-    dot_kernel<T><<<kVectorBlocks, kReduceBlock>>>(vec(x), vec(y), 19 * stride_, dot_partial_.get());
-    GPU_CHECK(gpuGetLastError());
-    finish_dot_kernel<<<1, kReduceBlock>>>(dot_partial_.get(), kVectorBlocks, dot_partial_.get() + kVectorBlocks);
-    GPU_CHECK(gpuGetLastError());
-    double out = 0;
-    GPU_CHECK(gpuMemcpy(&out, dot_partial_.get() + kVectorBlocks, sizeof(double), gpuMemcpyDeviceToHost));
-    return out;
-  }
-
-  std::size_t bytes_in_use() const override {
-    std::size_t bytes = density_.bytes() + material_.bytes() + state_.bytes() + totals_.bytes() + partial_.bytes() +
-                        reduced_.bytes() + dot_partial_.bytes();
-    for (const auto& v : vectors_) bytes += v->bytes();
-    return bytes;
-  }
-
- private:
-  static double to_double(float v) { return v; }
-  static double to_double(gpu_half v) { return static_cast<double>(__half2float(v)); }
-  static T from_double(double v) {
-    if constexpr (std::is_same_v<T, float>) return static_cast<float>(v);
-    else return __float2half_rn(static_cast<float>(v));
-  }
-
-  T* level_ptr(int system, int level) const {
-    return state_.get() + static_cast<std::size_t>(system) * 2 * 19 * static_cast<std::size_t>(stride_) +
-           static_cast<std::size_t>(level) * 19 * static_cast<std::size_t>(stride_);
-  }
-
-  BatchArgs<T> args() const {
-    BatchArgs<T> a;
-    a.d = d_;
-    a.stride = stride_;
-    a.system_stride = 2 * 19 * stride_;
-    a.systems = static_cast<int>(batch_.size());
-    a.density = density_.get();
-    a.material = material_.get();
-    a.cur = level_ptr(0, level_);
-    a.next = level_ptr(0, 1 - level_);
-    a.totals = totals_.get();
-    return a;
-  }
-
-  // Boundary-fed entries of `level` (system 0's layout) for `systems` systems (-1: the batch).
-  void inflow(T* level, bool zero, int systems = -1) {
-    BatchArgs<T> a = args();
-    if (systems >= 0) a.systems = systems;
-    const InflowLaunch l = inflow_launch(d_);
+  template <typename T>
+  void inflow(const BatchArgs<T>& a, T* level, bool zero) const {
+    const InflowLaunch l = inflow_launch(a.d);
     if (l.blocks == 0) return;
     inflow_kernel<T><<<static_cast<unsigned>(l.blocks), kInflowThreads>>>(a, l, level, zero);
     GPU_CHECK(gpuGetLastError());
   }
-
-  // The runtime's current device is per host thread: a solver created on one thread and driven
-  // from another (or after another device's work) must select its own before touching memory.
-  void use_device() const { GPU_CHECK(gpuSetDevice(device_)); }
-
-  // A system of the current batch: anything else would address device memory past the state.
-  void check_system(int system) const {
-    if (system < 0 || system >= static_cast<int>(batch_.size()))
-      throw std::out_of_range("cuda backend: system " + std::to_string(system) + " is not in the batch");
+  void init_totals(float* totals, const Dims& d, int systems) const {
+    init_totals_kernel<<<static_cast<unsigned>((d.count() + kReduceBlock - 1) / kReduceBlock), kReduceBlock>>>(
+        totals, d, systems);
+    GPU_CHECK(gpuGetLastError());
+  }
+  template <typename T>
+  void measure(const BatchArgs<T>& a, double* partial, double* reduced, double* host) const {
+    const int blocks = reduce_blocks(a.d);
+    measure_kernel<T><<<static_cast<unsigned>(blocks), kReduceBlock>>>(a, partial);
+    GPU_CHECK(gpuGetLastError());
+    finish_reduce_kernel<<<static_cast<unsigned>(a.systems), kReduceBlock>>>(partial, blocks, a.systems, reduced);
+    GPU_CHECK(gpuGetLastError());
+    download(host, reduced, static_cast<std::size_t>(a.systems) * kReduceSlots * sizeof(double));
+  }
+  template <typename T>
+  void axpby(float a, const T* x, float b, T* y, long long n) const {
+    axpby_kernel<T><<<kVectorBlocks, kReduceBlock>>>(a, x, b, y, n);
+    GPU_CHECK(gpuGetLastError());
+  }
+  template <typename T>
+  double dot(const T* x, const T* y, long long n, double* scratch) const {
+    dot_kernel<T><<<kVectorBlocks, kReduceBlock>>>(x, y, n, scratch);
+    GPU_CHECK(gpuGetLastError());
+    finish_dot_kernel<<<1, kReduceBlock>>>(scratch, kVectorBlocks, scratch + kVectorBlocks);
+    GPU_CHECK(gpuGetLastError());
+    double out = 0;
+    download(&out, scratch + kVectorBlocks, sizeof(double));
+    return out;
   }
 
-  T* vec(int v) const { return vectors_.at(static_cast<std::size_t>(v))->get(); }
-  std::size_t vector_bytes() const { return 19 * static_cast<std::size_t>(stride_) * sizeof(T); }
-
-  // Puts this solver's tables into constant memory unless they are there already.
-  void bind() {
-    use_device();
-    if (bound_tables_owner(device_) == this && bound_batch_ == batch_generation_) return;
-    GPU_CHECK(gpuMemcpyToSymbol(c_ops, ops_, sizeof(ops_)));
-    GPU_CHECK(gpuMemcpyToSymbol(c_absorb, absorb_, sizeof(absorb_)));
-    int channel[kMaxBatch] = {};
-    float boundary[kMaxBatch][19] = {}, total[kMaxBatch] = {};
-    for (std::size_t s = 0; s < batch_.size(); ++s) {
-      channel[s] = batch_[s].channel;
-      for (int m = 0; m < 19; ++m) boundary[s][m] = static_cast<float>(batch_[s].boundary[m]);
-      total[s] = static_cast<float>(boundary_total(batch_[s].boundary));
-    }
-    GPU_CHECK(gpuMemcpyToSymbol(c_channel, channel, sizeof(channel)));
-    GPU_CHECK(gpuMemcpyToSymbol(c_boundary, boundary, sizeof(boundary)));
-    GPU_CHECK(gpuMemcpyToSymbol(c_boundary_total, total, sizeof(total)));
-    bound_tables_owner(device_) = this;
-    bound_batch_ = batch_generation_;
-  }
-
-  Dims d_;
-  int capacity_;
-  std::size_t count_ = 0;
-  long long stride_ = 0;
-  int channel_count_ = 0;
-  int device_ = 0;
-  CollisionOp<float> ops_[kMaxChannels][kMaxMaterials] = {};
-  unsigned absorb_[kMaxChannels] = {};
-  DeviceBuffer<float> density_;
-  DeviceBuffer<std::uint8_t> material_;
-  DeviceBuffer<T> state_;
-  DeviceBuffer<float> totals_;
-  DeviceBuffer<double> partial_, reduced_, dot_partial_;
-  std::vector<std::unique_ptr<DeviceBuffer<T>>> vectors_;
-  int reduce_blocks_ = 0;
-  std::vector<SystemSpec> batch_;
-  int level_ = 0;
-  bool inflow_pending_ = false;
-  long long batch_generation_ = 0, bound_batch_ = -1;
+ private:
+  int device_;
+  long long bound_generation_ = -1;
 };
 
 class CudaBackend final : public Backend {
@@ -591,11 +385,7 @@ class CudaBackend final : public Backend {
   }
   bool supports(Precision p) const override { return p != Precision::Float64; }
   bool occupies_host_cores() const override { return false; }
-  std::size_t bytes_per_system(const Dims& d, Precision p) const override {
-    const std::size_t v = p == Precision::Float16 ? 2 : 4;
-    return 2 * 19 * static_cast<std::size_t>(gpu_stride(d)) * v + d.count() * sizeof(float) +
-           ((d.interior_count() + kReduceBlock - 1) / kReduceBlock + 1) * kReduceSlots * sizeof(double);
-  }
+  std::size_t bytes_per_system(const Dims& d, Precision p) const override { return gpu_bytes_per_system(d, p); }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override {
     std::size_t free_bytes = 0, total = 0;
@@ -618,8 +408,10 @@ class CudaBackend final : public Backend {
                                                    " systems per batch, not " + std::to_string(options.max_systems));
     const int capacity = options.max_systems > 0 ? options.max_systems : 1;
     switch (options.precision) {
-      case Precision::Float32: return std::make_unique<Solver<float>>(g, channels, capacity);
-      case Precision::Float16: return std::make_unique<Solver<gpu_half>>(g, channels, capacity);
+      case Precision::Float32:
+        return std::make_unique<GpuSolver<float, CudaDevice>>(CudaDevice(device_), g, channels, capacity, "cuda");
+      case Precision::Float16:
+        return std::make_unique<GpuSolver<gpu_half, CudaDevice>>(CudaDevice(device_), g, channels, capacity, "cuda");
       default:
         throw Error(ErrorCategory::Unavailable, "the cuda backend stores float32 or float16, not float64");
     }

@@ -43,9 +43,22 @@ struct BatchArgs {
   float* totals = nullptr;      // systems x node count, as of the last measure
 };
 
-// Per-batch tables (GPU: constant memory; emulation: plain arrays) behind one small interface:
+// Per-batch tables behind one small interface that step_node, inflow_node and measure_node take:
 //   int channel(int s); unsigned absorb_bits(int c); float boundary(int s, int m);
 //   const CollisionOp<float>& op(int c, int k);
+// BatchTables holds them on the host (gpu_solver.h fills it per batch); the CUDA kernels read a
+// copy in constant memory (cuda_backend.cu), the emulation reads this one.
+struct BatchTables {
+  CollisionOp<float> ops[kMaxChannels][kMaxMaterials];
+  unsigned absorb[kMaxChannels];        // per channel: bit k set when material k absorbs
+  int channels[kMaxBatch];              // per system: its channel
+  float boundaries[kMaxBatch][19];      // per system: its boundary values
+  float boundary_totals[kMaxBatch];     // per system: boundary_total(), rounded once as the CPU does
+  int channel(int s) const { return channels[s]; }
+  unsigned absorb_bits(int c) const { return absorb[c]; }
+  float boundary(int s, int m) const { return boundaries[s][m]; }
+  const CollisionOp<float>& op(int c, int k) const { return ops[c][k]; }
+};
 
 // One LB step for interior node (x, y, z) of systems [s_begin, s_end) of the batch.
 template <typename T, typename Tables>

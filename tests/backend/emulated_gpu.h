@@ -1,8 +1,8 @@
-// The CUDA backend's per-thread code (backends/cuda/lb_device.h) behind the Backend interface,
-// run on the CPU over emulated launch grids: the same kernels' bodies, launch layouts, inflow,
-// reductions and Krylov vector operations as backends/cuda/cuda_backend.cu, launch by launch, with
-// loops standing in for the grid. The conformance cases run on it on every machine, so the GPU
-// code is checked even where no GPU is (tests/backend/conformance.cpp).
+// The CUDA backend on the CPU: its solver (backends/cuda/gpu_solver.h) over an emulated device
+// whose launches are loops over the same launch grids, each thread running the same per-thread
+// code (backends/cuda/lb_device.h) as the kernels. The conformance cases run on it on every
+// machine, so the GPU backend's host side and kernel code are checked even where no GPU is
+// (tests/backend/conformance.cpp). Only the CUDA API calls and the kernels' shells are not.
 #pragma once
 
 #include <memory>
