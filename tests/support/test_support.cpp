@@ -135,17 +135,7 @@ KrylovVectors& krylov_of(LatticeSolver& solver) {
 
 std::vector<float> solve_totals(const Backend& backend, const LatticeGeometry& g, const std::vector<ChannelMaterials>& ch,
                                 const SystemSpec& sys, int steps, Precision p) {
-  SolverOptions so;
-  so.precision = p;
-  so.max_systems = 1;
-  auto solver = backend.create(g, ch, so);
-  solver->reset({sys});
-  solver->step(steps);
-  std::vector<Residual> r;
-  solver->measure(r);
-  std::vector<float> out(g.dims.count());
-  solver->read_totals(0, out.data());
-  return out;
+  return solve_batch_totals(backend, g, ch, {sys}, steps, p).at(0);
 }
 
 std::vector<std::vector<float>> solve_batch_totals(const Backend& b, const LatticeGeometry& g,
