@@ -16,6 +16,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/relative_gap.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/pipeline/manifest.h"
 
 namespace fs = std::filesystem;
 
@@ -27,22 +28,28 @@ struct CompareArgs {
   double tolerance = 1e-5;
 };
 
-nlohmann::json read_manifest(const fs::path& dir) {
-  const fs::path file = dir / "manifest.json";
-  std::ifstream in(file);
-  if (!in) throw_invalid("not an lblight output directory (no manifest.json)", {dir.string(), {}, {}});
-  try {
-    return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw_invalid(std::string("cannot parse: ") + e.what(), {file.string(), {}, {}});
-  }
+// The bake output `dir`'s manifest; a folder without one is not an lblight output.
+nlohmann::json output_manifest(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw_invalid("not a folder; allowed: an lblight bake output folder", {dir.string(), {}, {}});
+  if (!fs::exists(dir / "manifest.json", ec))
+    throw_invalid("not an lblight output directory (no manifest.json)", {dir.string(), {}, {}});
+  return read_manifest(dir);
 }
 
 // Per grid, each value's difference relative to the reference value; values below 1e-6 of the
 // grid's largest are measured against that floor: light that faint is rounding noise in either bake.
-double grid_difference(const DenseGridIn& ref, const DenseGridIn& got) {
+// Grids of another type or lattice are not comparable (an input error, not a difference).
+double grid_difference(const DenseGridIn& ref, const DenseGridIn& got, const fs::path& ref_file,
+                       const fs::path& got_file) {
+  if (got.type != ref.type)
+    throw_invalid("grid '" + got.name + "' is " + got.type + " here but " + ref.type + " in " + ref_file.string(),
+                  {got_file.string(), {}, {}});
+  if (!(got.frame.dims == ref.frame.dims) || got.frame.index_min != ref.frame.index_min)
+    throw_invalid("grid '" + got.name + "' covers another lattice box than in " + ref_file.string(),
+                  {got_file.string(), {}, {}});
   double largest = 0.0;
-  for (const auto& ch : ref.values) largest = std::max(largest, peak_magnitude(ch));
+  for (const auto& ch : ref.values) keep_worst(largest, peak_magnitude(ch));
   const double floor = std::max(1e-30, 1e-6 * largest);
   double worst = 0.0;
   for (std::size_t c = 0; c < ref.values.size(); ++c)
@@ -52,10 +59,11 @@ double grid_difference(const DenseGridIn& ref, const DenseGridIn& got) {
 
 int compare_outputs(const CompareArgs& a) {
   const fs::path ref_dir = a.reference, other_dir = a.other;
-  const nlohmann::json ref = read_manifest(ref_dir), other = read_manifest(other_dir);
+  const nlohmann::json ref = output_manifest(ref_dir), other = output_manifest(other_dir);
   double worst = 0.0;
   int grids = 0;
-  for (const auto& model : ref.at("models")) {
+  for (std::size_t mi = 0; mi < ref.at("models").size(); ++mi) {
+    const nlohmann::json& model = ref["models"][mi];
     const std::string name = model.at("name");
     const auto it = std::find_if(other.at("models").begin(), other.at("models").end(),
                                  [&](const nlohmann::json& m) { return m.at("name") == name; });
@@ -70,11 +78,12 @@ int compare_outputs(const CompareArgs& a) {
         throw_invalid("model '" + name + "' has no .vdb in this output (baked with \"output\": {\"vdb\": false}); "
                       "compare reads the .vdb grids",
                       {dir->string(), {}, {}});
-    const fs::path fa = ref_dir / model.at("file").get<std::string>();
-    const fs::path fb = other_dir / it->at("file").get<std::string>();
+    const std::size_t oi = static_cast<std::size_t>(it - other.at("models").begin());
+    const fs::path fa = manifest_file(ref_dir, model.at("file"), "/models/" + std::to_string(mi) + "/file");
+    const fs::path fb = manifest_file(other_dir, it->at("file"), "/models/" + std::to_string(oi) + "/file");
     for (const auto& s : model.at("solutions")) {
       const std::string grid = s.at("grid");
-      const double d = grid_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid));
+      const double d = grid_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid), fa, fb);
       std::printf("%s %s: max relative difference %.3g\n", name.c_str(), grid.c_str(), d);
       keep_worst(worst, d);
       ++grids;

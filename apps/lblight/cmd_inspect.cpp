@@ -10,6 +10,7 @@
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
 #include "lblight/pipeline/bake_output.h"
+#include "lblight/pipeline/manifest.h"
 #include "lblight/io/vdb_io.h"
 #include "readers/lbh/lbh_reader.h"
 
@@ -163,40 +164,54 @@ std::string lbh_text(const nlohmann::json& j) {
 }
 
 nlohmann::json output_summary(const fs::path& dir) {
-  std::ifstream in(dir / "manifest.json");
-  nlohmann::json m;
-  try {
-    in >> m;
-  } catch (const nlohmann::json::exception& e) {
-    throw_invalid(std::string("manifest.json is not valid JSON: ") + e.what(), {(dir / "manifest.json").string(), {}, {}});
-  }
+  nlohmann::json m = read_manifest(dir);
   m["kind"] = "output";
   m["missing_files"] = nlohmann::json::array();
   // "file" or "lbh_file" is null (or absent) when the scene did not ask for that file
-  for (const auto& model : m.value("models", nlohmann::json::array()))
-    for (const char* key : {"file", "lbh_file"})
-      if (model.contains(key) && model[key].is_string() && !fs::exists(dir / model[key].get<std::string>()))
-        m["missing_files"].push_back(model[key]);
+  for (std::size_t i = 0; i < m["models"].size(); ++i)
+    for (const char* key : {"file", "lbh_file"}) {
+      const nlohmann::json& model = m["models"][i];
+      if (!model.contains(key) || !model[key].is_string()) continue;
+      const fs::path f = manifest_file(dir, model[key], "/models/" + std::to_string(i) + "/" + key);
+      std::error_code ec;
+      if (!fs::is_regular_file(f, ec)) m["missing_files"].push_back(model[key]);
+    }
   return m;
+}
+
+// A manifest field as text, whatever its type: parse_manifest checked only what readers compute with.
+std::string field(const nlohmann::json& obj, const char* key) {
+  if (!obj.is_object() || !obj.contains(key)) return "?";
+  const nlohmann::json& v = obj[key];
+  return v.is_string() ? v.get<std::string>() : v.dump();
+}
+std::string seconds_field(const nlohmann::json& obj, const char* key) {
+  return obj.contains(key) && obj[key].is_number() ? format_seconds(obj[key].get<double>()) : "?";
 }
 
 std::string output_text(const nlohmann::json& m, const fs::path& dir) {
   std::ostringstream s;
-  s << dir.string() << ": lblight " << m.value("lblight_version", "?") << " output of scene '"
-    << m["scene"].value("name", "?") << "' (" << m["scene"].value("hash", "?") << "), backend "
-    << m["backend"].value("description", "?") << ", " << m["backend"].value("precision", "?") << ", "
-    << format_seconds(m.value("total_seconds", 0.0)) << " s\n";
+  const nlohmann::json none = nlohmann::json::object();
+  const nlohmann::json& scene = m.contains("scene") ? m["scene"] : none;
+  const nlohmann::json& backend = m.contains("backend") ? m["backend"] : none;
+  s << dir.string() << ": lblight " << field(m, "lblight_version") << " output of scene '" << field(scene, "name")
+    << "' (" << field(scene, "hash") << "), backend " << field(backend, "description") << ", "
+    << field(backend, "precision") << ", " << seconds_field(m, "total_seconds") << " s\n";
   Table t({"model", "file", "solution", "direction", "iterations", "seconds", "error estimate"});
   for (const auto& model : m["models"]) {
     // the .vdb, or the .lbh when the scene wrote no .vdb ("file" is null then)
-    const std::string file =
-        model["file"].is_string() ? model["file"].get<std::string>() : model.value("lbh_file", std::string("-"));
+    const std::string file = model["file"].is_string()                                    ? model["file"].get<std::string>()
+                             : model.contains("lbh_file") && model["lbh_file"].is_string() ? model["lbh_file"].get<std::string>()
+                                                                                           : "-";
     for (const auto& sol : model["solutions"]) {
-      const auto d = sol["direction"];
-      t.add({model["name"], file, sol["grid"],
-             format_direction({d[0].get<int>(), d[1].get<int>(), d[2].get<int>()}), sol["iterations"].dump(),
-             format_seconds(sol["seconds"].get<double>()),
-             sol["error_estimate"].is_null() ? "n/a" : format_error(sol["error_estimate"].get<double>())});
+      std::string direction = "?";
+      if (sol.contains("direction")) {
+        const auto& d = sol["direction"];
+        direction = format_direction({d[0].get<int>(), d[1].get<int>(), d[2].get<int>()});
+      }
+      const bool estimate = sol.contains("error_estimate") && sol["error_estimate"].is_number();
+      t.add({model["name"], file, sol["grid"], direction, field(sol, "iterations"), seconds_field(sol, "seconds"),
+             estimate ? format_error(sol["error_estimate"].get<double>()) : "n/a"});
     }
   }
   s << t.str();

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lblight/core/error.h"
+#include "lblight/core/input_file.h"
 
 namespace fs = std::filesystem;
 
@@ -37,9 +38,13 @@ KindRules rules(OutputKind kind) {
 }
 
 bool marker_matches(const fs::path& file, const KindRules& r) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return false;
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  std::string text;
+  try {
+    text = read_input_file(file, "marker file", 64ull << 20);  // never a FIFO or a device
+  } catch (const Error&) {
+    return false;
+  }
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (!j.is_object()) return false;
   for (const char* k : r.marker_keys)
     if (!j.contains(k)) return false;

@@ -11,6 +11,7 @@
 // lblight's dense arrays have x fastest: OpenVDB calls that LayoutXYZ (offset i + j*mY + k*mZ),
 // not its default LayoutZYX (z fastest).
 
+#include "lblight/core/input_file.h"
 #include "lblight/core/system_info.h"
 #include "lblight/io/vdb_common.h"
 
@@ -112,7 +113,7 @@ void check_complete(const std::filesystem::path& path, const Location& where) {
 
 openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where) {
   ensure_initialized();
-  if (!std::filesystem::exists(path)) throw_invalid("VDB file " + path.string() + " does not exist", where);
+  check_regular_file(path, "VDB file", where);
   check_complete(path, {path.string(), {}, {}});
   openvdb::io::File file(path.string());
   try {
@@ -268,6 +269,7 @@ DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::st
 nlohmann::json inspect_vdb(const std::filesystem::path& file) {
   ensure_initialized();
   const Location where{file.string(), {}, {}};
+  check_regular_file(file, "VDB file", where);
   check_complete(file, where);
   openvdb::io::File f(file.string());
   try {

@@ -1,3 +1,4 @@
+#include "lblight/core/input_file.h"
 #include "lblight/mesh/obj_reader.h"
 
 #include <algorithm>
@@ -184,9 +185,7 @@ TriangleMesh parse_obj(std::istream& in, const std::string& name, const Location
 }
 
 TriangleMesh read_mesh(const std::filesystem::path& file, const Location& where) {
-  std::error_code ec;
-  if (!std::filesystem::exists(file, ec)) throw_invalid("mesh file " + file.string() + " does not exist", where);
-  if (std::filesystem::is_directory(file, ec)) throw_invalid("mesh path " + file.string() + " is a folder", where);
+  check_regular_file(file, "mesh file", where);
   const std::string ext = lower(file.extension().string());
   if (ext != ".obj")
     throw_invalid("mesh file " + file.string() + " has an unsupported format '" + ext +

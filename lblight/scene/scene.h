@@ -19,6 +19,9 @@
 namespace lblight {
 
 inline constexpr int kSceneVersion = 1;
+// A scene file larger than this is refused before it is parsed (thousands of models or forest
+// instances take a few MiB).
+inline constexpr std::uint64_t kMaxSceneBytes = 64ull << 20;
 
 enum class SourceType { Procedural, Vdb, Mesh };
 

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "lblight/core/hash.h"
+#include "lblight/core/input_file.h"
 #include "lblight/scene/json_reader.h"
 #include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
@@ -443,14 +444,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
 }
 
 Scene load_scene(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) {
-    if (!std::filesystem::exists(file)) throw_invalid("scene file does not exist", {file.string(), {}, {}});
-    throw_io("cannot read scene file", {file.string(), {}, {}});
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_scene(ss.str(), file);
+  return parse_scene(read_input_file(file, "scene file", kMaxSceneBytes), file);
 }
 
 }  // namespace lblight

@@ -41,6 +41,7 @@
 
 #if !defined(LBH_DEVICE_ONLY)
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -636,6 +637,11 @@ class Stream {
   // Reads and validates a whole file.
   Status open_file(const std::string& path) {
     reset();
+    // A pipe or device would block or never end: only regular files (symlinks followed).
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+      return fail(Status::IoError, "'" + path + "' " +
+                                       (std::filesystem::exists(path, ec) ? "is not a regular file" : "does not exist"));
     std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) return fail(Status::IoError, "cannot open '" + path + "'");
     const std::streamoff size = in.tellg();
