@@ -11,6 +11,8 @@
 #include <cstdlib>
 #include <sstream>
 
+#include <unistd.h>
+
 #include "lblight/core/error.h"
 
 namespace lblight::cli {
@@ -18,16 +20,29 @@ namespace lblight::cli {
 std::atomic<bool> g_interrupted{false};
 
 namespace {
+// After a signal, long work stops at its next check of g_interrupted and cleans up; should it
+// not come back within this many seconds (stuck in a library call), the process ends anyway.
+constexpr unsigned kStopGraceSeconds = 60;
+
+extern "C" void on_stop_overdue(int) {
+  static const char msg[] = "lblight: did not stop within 60 s of the signal; exiting now\n";
+  ssize_t ignored = ::write(2, msg, sizeof msg - 1);
+  (void)ignored;
+  ::_exit(130);
+}
+
 extern "C" void on_signal(int sig) {
-  g_interrupted.store(true);
+  const bool first = !g_interrupted.exchange(true);
   // A second INT/TERM/HUP ends the process at once. A broken pipe (stdout's reader gone) would
   // raise SIGPIPE again on the next write, before the output is cleaned up: ignore it from now on.
   std::signal(sig, sig == SIGPIPE ? SIG_IGN : SIG_DFL);
+  if (first && sig != SIGPIPE) ::alarm(kStopGraceSeconds);
 }
 }  // namespace
 
 void install_signal_handlers() {
   for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE}) std::signal(sig, on_signal);
+  std::signal(SIGALRM, on_stop_overdue);
 }
 
 void throw_if_interrupted() { throw_if_cancelled(&g_interrupted); }

@@ -91,9 +91,9 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   const auto t0 = std::chrono::steady_clock::now();
   const Scene scene = load_scene(args.solve.scene);
   const PlanOverrides ov = args.solve.overrides();
-  const std::filesystem::path target =
+  const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-bake")
-                          : std::filesystem::path(args.output);
+                          : std::filesystem::path(args.output));
   StagedDirectory::check_target(target, OutputKind::Bake);  // fail before any solving
 
   // Starting a GPU (driver and context, 0.1-1 s) overlaps loading and voxelising the models; a

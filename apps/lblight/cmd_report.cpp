@@ -37,9 +37,9 @@ int run_report(const ReportArgs& args) {
   ov.solutions.reset();  // the report chooses its own solutions (--solutions)
   auto backend = args.solve.make_backend();
   auto reference = make_backend({"cpu", args.solve.threads, 0});
-  const std::filesystem::path target =
+  const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-report")
-                          : std::filesystem::path(args.output);
+                          : std::filesystem::path(args.output));
   StagedDirectory::check_target(target, OutputKind::Report);
 
   ReportOptions opt;
@@ -137,6 +137,8 @@ Command add_report_command(CLI::App& app, const GlobalOptions&) {
       "(true error solid, the solver's own estimate dashed).");
   args->solve.add_to(*cmd);
   cmd->remove_option(cmd->get_option("--solutions"));
+  // Each run goes on until its estimate is below tolerance / depth: a step count does not apply.
+  cmd->remove_option(cmd->get_option("--iterations"));
   cmd->add_option("--solutions", args->study, "Base solutions to study (default 0,6: ambient and sun from above)")
       ->check(kNonEmpty)
       ->capture_default_str();

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <iostream>
 #include <vector>
 
@@ -55,7 +56,18 @@ int main(int argc, char** argv) {
   cli::install_signal_handlers();
   try {
     for (const cli::Command& c : commands)
-      if (c.app->parsed()) return c.run();
+      if (c.app->parsed()) {
+        const int rc = c.run();
+        // What a command printed must have reached stdout (a full disk, a closed pipe): a result
+        // the caller never saw is not a success.
+        std::cout.flush();
+        if (std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout) {
+          spdlog::error("cannot write to standard output (disk full or pipe closed?): the command's printed result "
+                        "is lost");
+          return rc == 0 ? 1 : rc;
+        }
+        return rc;
+      }
     return 1;
   } catch (const Error& e) {
     spdlog::error("{}", e.what());

@@ -320,8 +320,10 @@ std::string serialize_lbh(const DenseFrame& frame, const std::vector<LbhEncoded>
   namespace E = lbh::entry_field;
   for (std::size_t i = 0; i < sols.size(); ++i) {
     const LbhEncoded& e = sols[i];
-    if (e.name.empty() || e.name.size() > 15)
-      throw Error(ErrorCategory::Internal, "solution name '" + e.name + "' must have 1..15 characters");
+    if (const char* why = lbh::name_problem(e.name.data(), e.name.size()))
+      throw Error(ErrorCategory::Internal, "solution name '" + e.name + "' " + why);
+    for (std::size_t k = 0; k < i; ++k)
+      if (sols[k].name == e.name) throw Error(ErrorCategory::Internal, "two solutions are named '" + e.name + "'");
     const std::size_t t = lbh::kHeaderBytes + i * lbh::kEntryBytes;
     const auto at = [t](const lbh::Field& f) { return t + f.offset; };
     std::memcpy(&s[at(E::kName)], e.name.data(), e.name.size());

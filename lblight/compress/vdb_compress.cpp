@@ -30,13 +30,25 @@ LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSetting
       }
     names = wanted;
   }
+  // A .vdb may hold two grids of one name (OpenVDB would then read the first twice); an .lbh
+  // names each solution once.
+  std::vector<std::string> sorted = names;
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t i = 1; i < sorted.size(); ++i)
+    if (sorted[i] == sorted[i - 1])
+      throw_invalid("more than one Vec3f grid named '" + sorted[i] + "' (in the file or in --grids); allowed: each "
+                    "name once (an .lbh names each solution once)",
+                    where);
   if (names.empty()) throw_invalid("the file holds no Vec3f grid to compress (expected B00..B18 or light)", where);
 
   LbhFileContents out;
   for (std::size_t i = 0; i < names.size(); ++i) {
     const DenseGridIn g = read_vdb_grid_dense(file, names[i]);
     if (g.type != "vec3s") throw_invalid("grid '" + names[i] + "' is not a Vec3f grid", where);
-    if (names[i].size() > 15) throw_invalid("grid name '" + names[i] + "' is longer than 15 characters", where);
+    if (const char* why = lbh::name_problem(names[i].data(), names[i].size()))
+      throw_invalid("grid name '" + names[i] + "' " + why + "; allowed: 1..15 printable ASCII characters (the .lbh "
+                    "format's rule)",
+                    where);
     const DenseFrame& frame = g.frame;
     if (i == 0) out.frame = frame;
     else if (!(frame == out.frame))

@@ -1,10 +1,14 @@
 #include "lblight/core/system_info.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 namespace lblight {
 
@@ -18,6 +22,104 @@ std::size_t host_available_memory_bytes() {
     if (key == "MemAvailable:") return value * 1024;
   }
   return 0;
+}
+
+namespace {
+
+// A "key: value kB" line of a /proc file, in bytes; 0 when absent.
+std::size_t proc_kb(const char* file, const std::string& wanted) {
+  std::ifstream in(file);
+  std::string key;
+  std::size_t value = 0;
+  std::string rest;
+  while (in >> key >> value) {
+    std::getline(in, rest);
+    if (key == wanted) return value * 1024;
+  }
+  return 0;
+}
+
+// A number in a cgroup file; 0 for "max", a missing file or anything unreadable.
+std::size_t cgroup_value(const std::string& file) {
+  std::ifstream in(file);
+  std::string text;
+  if (!(in >> text) || text == "max") return 0;
+  const unsigned long long v = std::strtoull(text.c_str(), nullptr, 10);
+  return v >= (1ull << 62) ? 0 : static_cast<std::size_t>(v);  // v1 writes ~2^63 for "no limit"
+}
+
+// The least room (limit - usage) along this process's cgroup path, for cgroup v2 and v1.
+std::size_t cgroup_room() {
+  std::ifstream in("/proc/self/cgroup");
+  std::string line;
+  std::size_t best = 0;
+  const auto consider = [&](const std::string& limit_file, const std::string& usage_file) {
+    const std::size_t limit = cgroup_value(limit_file);
+    if (limit == 0) return;
+    const std::size_t used = cgroup_value(usage_file);
+    const std::size_t room = used < limit ? limit - used : 0;
+    if (best == 0 || room < best) best = room == 0 ? 1 : room;
+  };
+  while (std::getline(in, line)) {
+    const auto c1 = line.find(':'), c2 = line.find(':', c1 + 1);
+    if (c1 == std::string::npos || c2 == std::string::npos) continue;
+    const std::string controllers = line.substr(c1 + 1, c2 - c1 - 1);
+    std::string path = line.substr(c2 + 1);
+    const bool v2 = controllers.empty(), v1 = controllers == "memory";
+    if (!v2 && !v1) continue;
+    for (;;) {  // the limit of every cgroup on the way up counts
+      for (const std::string& root : v2 ? std::vector<std::string>{"/sys/fs/cgroup", "/sys/fs/cgroup/unified"}
+                                       : std::vector<std::string>{"/sys/fs/cgroup/memory"}) {
+        const std::string dir = root + (path == "/" ? "" : path);
+        if (v2) consider(dir + "/memory.max", dir + "/memory.current");
+        else consider(dir + "/memory.limit_in_bytes", dir + "/memory.usage_in_bytes");
+      }
+      if (path.empty() || path == "/") break;
+      const auto slash = path.rfind('/');
+      path = slash == 0 || slash == std::string::npos ? "/" : path.substr(0, slash);
+    }
+  }
+  return best;
+}
+
+// What an rlimit leaves above `used`; 0 when unlimited.
+std::size_t rlimit_room(int resource, std::size_t used) {
+  struct rlimit r {};
+  if (getrlimit(resource, &r) != 0 || r.rlim_cur == RLIM_INFINITY) return 0;
+  const std::size_t limit = static_cast<std::size_t>(r.rlim_cur);
+  return used < limit ? limit - used : 1;
+}
+
+}  // namespace
+
+MemoryLimit host_memory_limit() {
+  MemoryLimit m;
+  const auto take = [&](std::size_t bytes, const char* source) {
+    if (bytes > 0 && (m.bytes == 0 || bytes < m.bytes)) {
+      m.bytes = bytes;
+      m.source = source;
+    }
+  };
+  take(host_available_memory_bytes(), "MemAvailable");
+  take(rlimit_room(RLIMIT_AS, proc_kb("/proc/self/status", "VmSize:")), "the address-space limit (ulimit -v)");
+  take(rlimit_room(RLIMIT_DATA, proc_kb("/proc/self/status", "VmData:")), "the data limit (ulimit -d)");
+  take(cgroup_room(), "the cgroup memory limit");
+  return m;
+}
+
+std::string gib(double bytes) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.2f GiB", bytes / (1024.0 * 1024.0 * 1024.0));
+  return buf;
+}
+
+void check_host_memory(double bytes, const std::string& what, const std::string& reduce, const Location& where) {
+  const MemoryLimit limit = host_memory_limit();
+  if (limit.bytes == 0 || bytes <= 0.9 * static_cast<double>(limit.bytes)) return;
+  throw Error(ErrorCategory::Unavailable,
+              what + " needs " + gib(bytes) + " of memory, but this process may allocate only " +
+                  gib(static_cast<double>(limit.bytes)) + " more (" + limit.source + "); " + reduce,
+              where);
 }
 
 std::string host_cpu_model() {

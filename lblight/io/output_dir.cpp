@@ -1,9 +1,11 @@
 #include "lblight/io/output_dir.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <string>
@@ -22,6 +24,24 @@ namespace {
 std::string unique_suffix() {
   static std::atomic<int> counter{0};
   return std::to_string(::getpid()) + "-" + std::to_string(counter++);
+}
+
+// Entries of `dir` named <prefix><pid>-... whose process no longer exists: what an lblight killed
+// while writing left behind (staging folders, temporary files). A pid that is alive, or that we
+// may not signal, is left alone.
+void remove_dead_leftovers(const fs::path& dir, const std::string& prefix) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const std::size_t dash = rest.find('-');
+    if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789") != dash) continue;
+    const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+    if (pid <= 0 || pid == ::getpid() || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+    std::error_code ignore;
+    fs::remove_all(e.path(), ignore);
+  }
 }
 
 struct KindRules {
@@ -65,7 +85,19 @@ bool allowed_beside_marker(const fs::directory_entry& e, const KindRules& r) {
 
 }  // namespace
 
-void StagedDirectory::check_target(const fs::path& target, OutputKind kind) {
+fs::path output_folder_path(const fs::path& given) {
+  fs::path p = given.lexically_normal();
+  if (!p.empty() && p.filename().empty()) p = p.parent_path();  // "out/" -> "out"
+  const std::string leaf = p.filename().string();
+  if (p.empty() || leaf.empty() || leaf == "." || leaf == ".." || p == p.root_path())
+    throw_invalid("output path '" + given.string() + "' names no folder to create or replace; allowed: a folder name, "
+                  "e.g. out/tree-bake",
+                  {given.string(), {}, {}});
+  return p;
+}
+
+void StagedDirectory::check_target(const fs::path& given, OutputKind kind) {
+  const fs::path target = output_folder_path(given);
   std::error_code ec;
   if (!fs::exists(target, ec)) return;
   if (!fs::is_directory(target, ec))
@@ -85,14 +117,16 @@ void StagedDirectory::check_target(const fs::path& target, OutputKind kind) {
   if (ec) throw_io("cannot list the output directory: " + ec.message(), {target.string(), {}, {}});
 }
 
-StagedDirectory::StagedDirectory(fs::path target, OutputKind kind) : target_(std::move(target)) {
+StagedDirectory::StagedDirectory(fs::path target, OutputKind kind) : target_(output_folder_path(target)) {
   check_target(target_, kind);
   const fs::path abs = fs::absolute(target_).lexically_normal();
   const fs::path parent = abs.parent_path();
   std::error_code ec;
   fs::create_directories(parent, ec);
   if (ec) throw_io("cannot create the output's parent folder: " + ec.message(), {parent.string(), {}, {}});
-  const std::string leaf = abs.filename().empty() ? abs.parent_path().filename().string() : abs.filename().string();
+  const std::string leaf = abs.filename().string();
+  remove_dead_leftovers(parent, "." + leaf + ".staging-");
+  remove_dead_leftovers(parent, ".." + leaf + ".staging-");  // a previous output moved aside by commit()
   staging_ = parent / ("." + leaf + ".staging-" + unique_suffix());
   fs::create_directory(staging_, ec);
   if (ec) throw_io("cannot create staging folder: " + ec.message(), {staging_.string(), {}, {}});
@@ -123,6 +157,8 @@ void StagedDirectory::commit() {
 }
 
 void write_file_atomically(const fs::path& file, const std::function<void(const fs::path& temporary)>& write) {
+  remove_dead_leftovers(file.parent_path().empty() ? fs::path(".") : file.parent_path(),
+                        "." + file.filename().string() + ".tmp-");
   const fs::path tmp = file.parent_path() / ("." + file.filename().string() + ".tmp-" + unique_suffix());
   const auto remove_tmp = [&] {
     std::error_code ignore;

@@ -15,13 +15,21 @@ enum class OutputKind {
   Report,  // report.json (curves, references), report.csv and .svg plots
 };
 
+// The output folder a user named, as lblight uses it: lexically normal, without a trailing
+// separator ("out/" is "out"). Error(InvalidInput) for a path that names no folder to create or
+// replace ("", ".", "..", "/", "a/..").
+std::filesystem::path output_folder_path(const std::filesystem::path& given);
+
 class StagedDirectory {
  public:
-  // Checks that `target` may be (re)placed: it must not exist, be empty, or hold a previous
-  // output of the same kind and nothing else (no folders, no other files). Throws
-  // Error(InvalidInput) otherwise, naming what is in the way: replacing deletes the folder.
+  // Checks that `target` (after output_folder_path) may be (re)placed: it must not exist, be
+  // empty, or hold a previous output of the same kind and nothing else (no folders, no other
+  // files). Throws Error(InvalidInput) otherwise, naming what is in the way: replacing deletes
+  // the folder.
   static void check_target(const std::filesystem::path& target, OutputKind kind);
 
+  // Stages beside `target`; staging folders that dead lblight processes left there (a SIGKILL, a
+  // crash) are removed first.
   StagedDirectory(std::filesystem::path target, OutputKind kind);
   StagedDirectory(const StagedDirectory&) = delete;
   StagedDirectory& operator=(const StagedDirectory&) = delete;

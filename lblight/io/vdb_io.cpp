@@ -59,6 +59,15 @@ namespace {
 
 using vdb_detail::ensure_initialized;
 
+// The dims of an OpenVDB box, checked (check_index_box) before any dense array or copy is made:
+// near 2^31 both the dims and OpenVDB's own dense copy overflow.
+Dims checked_dims(const openvdb::CoordBBox& bbox, const std::string& what, const Location& where) {
+  const std::array<std::int64_t, 3> lo{bbox.min().x(), bbox.min().y(), bbox.min().z()};
+  const std::array<std::int64_t, 3> hi{bbox.max().x(), bbox.max().y(), bbox.max().z()};
+  check_index_box(lo, hi, what, where);
+  return {static_cast<int>(hi[0] - lo[0] + 1), static_cast<int>(hi[1] - lo[1] + 1), static_cast<int>(hi[2] - lo[2] + 1)};
+}
+
 std::array<double, 16> from_vdb_transform(const openvdb::math::Transform& t, const std::string& what,
                                           const Location& where) {
   if (!t.isLinear()) throw_invalid(what + " has a non-linear (frustum) transform; lblight needs a linear one", where);
@@ -178,15 +187,11 @@ ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string&
   const openvdb::CoordBBox bbox = grid->evalActiveVoxelBoundingBox();
   if (bbox.empty()) throw_invalid("grid '" + density_grid + "' in " + file.string() + " has no active voxels", where);
   ModelGrid g;
-  const openvdb::Coord dim = bbox.dim();
-  g.dims = {dim.x(), dim.y(), dim.z()};
-  const double bytes = static_cast<double>(g.dims.count()) * 5.0;
-  const std::size_t avail = host_available_memory_bytes();
-  if (avail > 0 && bytes > 0.5 * static_cast<double>(avail))
-    throw Error(ErrorCategory::Unavailable,
-                "grid '" + density_grid + "' spans " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
-                    std::to_string(g.dims.nz) + " voxels, too large for this machine's memory",
-                where);
+  g.dims = checked_dims(bbox, "the active voxels of grid '" + density_grid + "' in " + file.string(), where);
+  check_host_memory(static_cast<double>(g.dims.count()) * 5.0,
+                    "grid '" + density_grid + "' (" + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) +
+                        "x" + std::to_string(g.dims.nz) + " voxels as a dense density and material grid)",
+                    "crop the grid to the medium or resample it coarser", where);
   g.index_min = {bbox.min().x(), bbox.min().y(), bbox.min().z()};
   g.index_to_world = from_vdb_transform(grid->transform(), "grid '" + density_grid + "'", where);
   g.density.assign(g.dims.count(), 0.0f);
@@ -234,17 +239,36 @@ DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::st
   out.metadata = metadata_to_json(*base);
   // lblight outputs record their lattice box; other files are read over their active voxels.
   openvdb::CoordBBox bbox;
+  const std::string box_name = "the lattice box of grid '" + name + "'";
   if (out.metadata.contains("lblight_lattice_min") && out.metadata.contains("lblight_lattice_dims")) {
-    const auto& lo = out.metadata["lblight_lattice_min"];
-    const auto& d = out.metadata["lblight_lattice_dims"];
-    bbox = openvdb::CoordBBox(openvdb::Coord(lo[0].get<int>(), lo[1].get<int>(), lo[2].get<int>()),
-                              openvdb::Coord(lo[0].get<int>() + d[0].get<int>() - 1, lo[1].get<int>() + d[1].get<int>() - 1,
-                                             lo[2].get<int>() + d[2].get<int>() - 1));
+    const nlohmann::json& lo = out.metadata["lblight_lattice_min"];
+    const nlohmann::json& d = out.metadata["lblight_lattice_dims"];
+    const auto ints = [](const nlohmann::json& v) {
+      return v.is_array() && v.size() == 3 && v[0].is_number_integer() && v[1].is_number_integer() &&
+             v[2].is_number_integer();
+    };
+    if (!ints(lo) || !ints(d))
+      throw_invalid("grid '" + name + "': metadata lblight_lattice_min and lblight_lattice_dims must be 3 integers each",
+                    where);
+    std::array<std::int64_t, 3> l{}, h{};
+    for (int a = 0; a < 3; ++a) {
+      l[a] = lo[a].get<std::int64_t>();
+      h[a] = l[a] + d[a].get<std::int64_t>() - 1;
+    }
+    check_index_box(l, h, box_name + " (its lblight_lattice_min, lblight_lattice_dims metadata)", where);
+    bbox = openvdb::CoordBBox(openvdb::Coord(static_cast<int>(l[0]), static_cast<int>(l[1]), static_cast<int>(l[2])),
+                              openvdb::Coord(static_cast<int>(h[0]), static_cast<int>(h[1]), static_cast<int>(h[2])));
   } else {
     bbox = base->evalActiveVoxelBoundingBox();
+    if (bbox.empty()) bbox = openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(0));
   }
-  if (bbox.empty()) bbox = openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(0));
-  out.frame.dims = {bbox.dim().x(), bbox.dim().y(), bbox.dim().z()};
+  const Dims dims = checked_dims(bbox, box_name, where);
+  const bool vec3 = out.type == "vec3s";
+  check_host_memory(static_cast<double>(dims.count()) * (vec3 ? 24.0 : 4.0),
+                    "grid '" + name + "' (" + std::to_string(dims.nx) + "x" + std::to_string(dims.ny) + "x" +
+                        std::to_string(dims.nz) + " voxels, read densely)",
+                    "read a smaller grid", where);
+  out.frame.dims = dims;
   out.frame.index_min = {bbox.min().x(), bbox.min().y(), bbox.min().z()};
   out.frame.index_to_world = from_vdb_transform(base->transform(), "grid '" + name + "'", where);
   const std::size_t n = out.frame.dims.count();

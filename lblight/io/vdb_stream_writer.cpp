@@ -162,6 +162,7 @@ VdbStreamWriter::VdbStreamWriter(const std::filesystem::path& file, const DenseF
                                  const nlohmann::json& file_metadata, int parallel_grids)
     : impl_(std::make_unique<Impl>()) {
   ensure_initialized();
+  frame.check("the lattice of " + file.string(), {file.string(), {}, {}});  // before any dense copy
   Impl& s = *impl_;
   s.parallel = std::max(1, parallel_grids);
   s.file = file;

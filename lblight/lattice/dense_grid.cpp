@@ -4,6 +4,36 @@
 
 namespace lblight {
 
+void check_index_box(const std::array<std::int64_t, 3>& lo, const std::array<std::int64_t, 3>& hi,
+                     const std::string& what, const Location& where) {
+  const auto box = [&] {
+    std::string s;
+    for (int a = 0; a < 3; ++a) s += (a ? ", " : "") + std::to_string(lo[a]) + ".." + std::to_string(hi[a]);
+    return "(" + s + ")";
+  };
+  for (int a = 0; a < 3; ++a) {
+    if (hi[a] < lo[a]) throw_invalid(what + " is empty " + box(), where);
+    if (lo[a] < -kMaxIndexCoord || hi[a] > kMaxIndexCoord)
+      throw_invalid(what + " spans index coordinates " + box() + "; allowed: within -" + std::to_string(kMaxIndexCoord) +
+                        ".." + std::to_string(kMaxIndexCoord),
+                    where);
+    if (hi[a] - lo[a] + 1 > kMaxNodesPerAxis)
+      throw_invalid(what + " spans " + std::to_string(hi[a] - lo[a] + 1) + " nodes along axis " + "xyz"[a] + " " +
+                        box() + "; allowed: at most " + std::to_string(kMaxNodesPerAxis),
+                    where);
+  }
+}
+
+void DenseFrame::check(const std::string& what, const Location& where) const {
+  const int n[3] = {dims.nx, dims.ny, dims.nz};
+  std::array<std::int64_t, 3> lo{}, hi{};
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = index_min[a];
+    hi[a] = static_cast<std::int64_t>(index_min[a]) + n[a] - 1;
+  }
+  check_index_box(lo, hi, what, where);
+}
+
 std::size_t ModelGrid::wood_nodes() const {
   std::size_t n = 0;
   for (std::size_t i = 0; i < material.size(); ++i) n += (material[i] == kMaterialWood && density[i] > 0.0f);

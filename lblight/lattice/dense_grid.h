@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "lblight/core/error.h"
 #include "lblight/lattice/lattice.h"
 
 namespace lblight {
@@ -21,6 +22,18 @@ inline constexpr int kMaxMaterials = 2;
 // is below ~1e-5 ("nearly singular"), which would fail only when the .vdb is written.
 inline constexpr double kMinNodeSize = 2e-5;
 
+// Index coordinates lblight takes: OpenVDB's dense copies walk tree nodes 4096 voxels wide and
+// overflow 32-bit coordinates near 2^31, so every box stays within +-2^30, and an axis holds at
+// most 2^20 nodes (the .lbh format's limit).
+inline constexpr std::int64_t kMaxIndexCoord = std::int64_t{1} << 30;
+inline constexpr std::int64_t kMaxNodesPerAxis = std::int64_t{1} << 20;
+
+// Error(InvalidInput) at `where` unless the inclusive box [lo, hi] is non-empty, lies within
+// +-kMaxIndexCoord and has at most kMaxNodesPerAxis nodes per axis; `what` names the box in the
+// message ("the active voxels of grid 'density'").
+void check_index_box(const std::array<std::int64_t, 3>& lo, const std::array<std::int64_t, 3>& hi,
+                     const std::string& what, const Location& where);
+
 // Where a dense array of nodes sits: node (i, j, k) is index coordinate index_min + (i, j, k);
 // index_to_world is row-major 4x4 acting on (i, j, k, 1), as OpenVDB's transform does (the world
 // position of the centre of voxel (i, j, k)).
@@ -28,6 +41,8 @@ struct DenseFrame {
   Dims dims;
   std::array<int, 3> index_min{};
   std::array<double, 16> index_to_world{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  // Error(InvalidInput) unless the frame's box passes check_index_box.
+  void check(const std::string& what, const Location& where) const;
   bool operator==(const DenseFrame& o) const {
     return dims == o.dims && index_min == o.index_min && index_to_world == o.index_to_world;
   }

@@ -268,13 +268,10 @@ void allocate_grid(const Layout& l, const Location& where, ModelGrid& g) {
   g.index_min = {-P, -P, -P};
   g.index_to_world = {h, 0, 0, l.origin[0] + 0.5 * h, 0, h, 0, l.origin[1] + 0.5 * h, 0, 0, h, l.origin[2] + 0.5 * h,
                       0, 0, 0, 1};
-  const double bytes = static_cast<double>(g.dims.count()) * 5.0;
-  const std::size_t avail = host_available_memory_bytes();
-  if (avail > 0 && bytes > 0.5 * static_cast<double>(avail))
-    throw Error(ErrorCategory::Unavailable,
-                "voxelize: a " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
-                    std::to_string(g.dims.nz) + " grid is too large for this machine's memory",
-                where);
+  check_host_memory(static_cast<double>(g.dims.count()) * 5.0,
+                    "voxelize: a " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
+                        std::to_string(g.dims.nz) + " grid",
+                    "lower the resolution", where);
   g.density.assign(g.dims.count(), 0.0f);
   g.material.assign(g.dims.count(), kMaterialMedium);
 }

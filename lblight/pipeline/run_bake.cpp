@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include "lblight/pipeline/bake_output.h"
+#include "lblight/solve/plan_cost.h"
 
 namespace lblight {
 namespace {
@@ -41,6 +42,12 @@ nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std:
                         const std::string& command_line, BakeObserver& observer, const RunContext& ctx,
                         double seconds_before) {
   const auto t0 = std::chrono::steady_clock::now();
+  // Every model must fit before the first one solves: a bake that fails at its second model has
+  // spent the first one's time for nothing.
+  for (const ModelPlan& mp : plan.models) {
+    const PlanCost cost = plan_cost(mp, backend);
+    if (!cost.fits) throw Error(ErrorCategory::Unavailable, cost.why_not);
+  }
   // On a GPU the host waits on the device: convert and write each solution while the next solves.
   BakeOutput output(plan, target, {command_line, backend.name(), backend.description()},
                     /*write_in_background=*/!backend.occupies_host_cores());

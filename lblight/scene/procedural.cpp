@@ -1,3 +1,4 @@
+#include "lblight/core/system_info.h"
 #include "lblight/scene/procedural.h"
 
 #include <algorithm>
@@ -202,6 +203,9 @@ ModelGrid make_box(const ProceduralSource& s) {
 }  // namespace
 
 ModelGrid make_procedural(const ProceduralSource& src) {
+  const double r = src.resolution;
+  check_host_memory(r * r * r * 5.0, "a procedural " + src.shape + " at resolution " + std::to_string(src.resolution),
+                    "lower the resolution");
   if (src.shape == "box") return make_box(src);
   if (src.shape == "cloud") return make_cloud(src);
   if (src.shape == "plant") return make_plant(src);

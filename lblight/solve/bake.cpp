@@ -6,6 +6,7 @@
 #include <string>
 
 #include "lblight/core/error.h"
+#include "lblight/core/system_info.h"
 #include "lblight/solve/krylov.h"
 
 namespace lblight {
@@ -15,11 +16,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-std::string gib(std::size_t bytes) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.2f GiB", static_cast<double>(bytes) / (1024.0 * 1024.0 * 1024.0));
-  return buf;
-}
 
 // How one batch ended.
 struct BatchOutcome {
@@ -263,8 +259,8 @@ int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOption
     if (fit < 1)
       throw Error(ErrorCategory::Unavailable,
                   "model '" + mp.spec->name + "': a " + std::to_string(d.nx) + "x" + std::to_string(d.ny) + "x" +
-                      std::to_string(d.nz) + " lattice needs " + gib(fixed + extra + per_system) + " on the " +
-                      backend.name() + " backend but only " + gib(avail) +
+                      std::to_string(d.nz) + " lattice needs " + gib(static_cast<double>(fixed + extra + per_system)) + " on the " +
+                      backend.name() + " backend but only " + gib(static_cast<double>(avail)) +
                       " is available; lower the resolution or use a machine with more memory");
     want = std::min(want, fit);
   }

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "lblight/core/error.h"
+#include "lblight/core/system_info.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/scene/load_model.h"
 
@@ -138,6 +139,15 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, const RunContext& ctx, std:
     mp.grid = crop_to_occupied(mp.grid);
     mp.savings.cropped = mp.grid.dims.count() != full.count();
   }
+  // The lattice and what any bake of it holds on the host besides (one solution's totals, B00's
+  // sum), checked before the lattice is built: a thin grid's margin can multiply its nodes.
+  const Dims& gd = mp.grid.dims;
+  const double nodes = static_cast<double>(gd.nx + 2 * spec.margin) * (gd.ny + 2 * spec.margin) * (gd.nz + 2 * spec.margin);
+  check_host_memory(nodes * kHostBytesPerLatticeNode,
+                    "model '" + spec.name + "' (a " + std::to_string(gd.nx + 2 * spec.margin) + "x" +
+                        std::to_string(gd.ny + 2 * spec.margin) + "x" + std::to_string(gd.nz + 2 * spec.margin) +
+                        " lattice)",
+                    "lower the resolution, crop the density source or lower margin", {scene.file.string(), spec.json_path, {}});
   mp.lattice = build_lattice(mp.grid, spec.margin);
   for (int c = 0; c < 3; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
 }

@@ -16,6 +16,10 @@
 
 namespace lblight {
 
+// Host memory any bake of a lattice needs per node besides its solver: density and material (5
+// bytes), one solution's totals in 3 channels (12) and B00's sum when derived (24).
+inline constexpr double kHostBytesPerLatticeNode = 41.0;
+
 // The largest boundary value float16 storage takes (its largest finite value is 65504; light in
 // the lattice stays near the boundary's, and the margin keeps sums and overshoot finite).
 inline constexpr double kFloat16MaxBoundary = 1e4;

@@ -125,6 +125,17 @@ constexpr Field kAll[] = {kName,         kIndex,        kDirection,    kThreshol
                           kMasksCrc,     kOffsetsCrc,   kCoeffsCrc,    kEncoding,      kFastBlocks,     kMaxAbsError,
                           kRmsError,     kQuantStep,    kDetailsCrc};
 }  // namespace entry_field
+// Why `name` cannot name a solution (nullptr when it can): 1..15 printable ASCII characters, and
+// no two solutions of a file share one. The writer (lblight/compress) applies the same rule.
+inline const char* name_problem(const char* name, std::size_t len) {
+  if (len == 0) return "is empty";
+  if (len > 15) return "is longer than 15 characters";
+  for (std::size_t c = 0; c < len; ++c)
+    if (static_cast<unsigned char>(name[c]) < 0x20 || static_cast<unsigned char>(name[c]) > 0x7E)
+      return "is not printable ASCII";
+  return nullptr;
+}
+
 namespace detail {
 template <std::size_t N>
 constexpr bool tiles(const Field (&fields)[N], std::uint32_t total) {
@@ -939,9 +950,11 @@ class Stream {
     if (!nul) return fail(Status::BadHeader, who + ": name is not NUL-terminated within 16 bytes");
     const std::size_t len = static_cast<std::size_t>(static_cast<const unsigned char*>(nul) - e);
     if (!all_zero(e + len, E::kName.bytes - len)) return fail(Status::BadHeader, who + ": name padding is not 0");
-    for (std::size_t c = 0; c < len; ++c)
-      if (e[c] < 0x20 || e[c] > 0x7E) return fail(Status::BadHeader, who + ": name is not printable ASCII");
+    if (const char* why = name_problem(reinterpret_cast<const char*>(e), len))
+      return fail(Status::BadHeader, who + ": name " + why);
     i.name.assign(reinterpret_cast<const char*>(e), len);
+    for (std::uint32_t k = 0; k < s; ++k)
+      if (infos_[k].name == i.name) return fail(Status::BadHeader, who + ": name '" + i.name + "' is also solution " + std::to_string(k) + "'s");
     i.index = rdi32(e + E::kIndex.offset);
     if (i.index < -1 || i.index > 18)
       return fail(Status::BadHeader, who + ": base solution index " + std::to_string(i.index) + " outside -1..18");
