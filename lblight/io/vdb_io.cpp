@@ -7,11 +7,14 @@
 #include <cmath>
 #include <fstream>
 #include <mutex>
+#include <set>
+#include <utility>
 
 // lblight's dense arrays have x fastest: OpenVDB calls that LayoutXYZ (offset i + j*mY + k*mZ),
 // not its default LayoutZYX (z fastest).
 
 #include "lblight/core/input_file.h"
+#include "lblight/core/isolated_call.h"
 #include "lblight/core/system_info.h"
 #include "lblight/io/vdb_common.h"
 
@@ -120,10 +123,60 @@ void check_complete(const std::filesystem::path& path, const Location& where) {
   CompletenessCheck().run(path, where);
 }
 
+// Every grid of `path` read once in a child process (run_isolated) before this process reads
+// any: OpenVDB crashes, or allocates without end, on some corrupt files that pass the
+// completeness check, and that must be an input error here, not a crash. Reading and walking
+// the leaves are serial (no TBB in a forked child). Once per file and size.
+void probe_readable(const std::filesystem::path& path, const Location& where) {
+  static std::mutex mutex;
+  static std::set<std::pair<std::string, std::uintmax_t>> probed;
+  std::error_code ec;
+  const auto key = std::make_pair(std::filesystem::absolute(path, ec).string(), std::filesystem::file_size(path, ec));
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (probed.count(key)) return;
+  }
+  const MemoryLimit limit = host_memory_limit();
+  const IsolatedOutcome o = run_isolated(
+      [&] {
+        openvdb::io::File file(path.string());
+        file.open(/*delayLoad=*/false);
+        for (auto it = file.beginName(); it != file.endName(); ++it) {
+          try {
+            const openvdb::GridBase::Ptr g = file.readGrid(it.gridName());
+            g->apply<openvdb::GridTypes>([](const auto& grid) {
+              std::size_t leaves = 0;
+              for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) leaves += leaf->onVoxelCount() > 0;
+              (void)leaves;
+            });
+          } catch (const std::exception& e) {
+            throw std::runtime_error("grid '" + it.gridName() + "' cannot be read (damaged data?): " + e.what());
+          }
+        }
+        file.close();
+      },
+      600.0, {}, limit.bytes);
+  switch (o.kind) {
+    case IsolatedOutcome::Kind::Ok: break;
+    case IsolatedOutcome::Kind::Threw: throw_invalid(path.string() + ": " + o.message, where);
+    case IsolatedOutcome::Kind::Crashed:
+      throw_invalid("the grid data of " + path.string() + " cannot be read (damaged data?): OpenVDB failed reading it (" +
+                        o.message + "; a corrupt file, or one too large for this machine's memory)",
+                    where);
+    case IsolatedOutcome::Kind::TimedOut:
+      throw_invalid("the grid data of " + path.string() + " cannot be read: reading it took more than " + o.message,
+                    where);
+    case IsolatedOutcome::Kind::Cancelled: throw Error(ErrorCategory::Cancelled, "interrupted", where);
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  probed.insert(key);
+}
+
 openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where) {
   ensure_initialized();
   check_regular_file(path, "VDB file", where);
   check_complete(path, {path.string(), {}, {}});
+  probe_readable(path, where);
   openvdb::io::File file(path.string());
   try {
     file.open(/*delayLoad=*/false);  // read every leaf in readGrid below, where errors are caught
@@ -295,6 +348,7 @@ nlohmann::json inspect_vdb(const std::filesystem::path& file) {
   const Location where{file.string(), {}, {}};
   check_regular_file(file, "VDB file", where);
   check_complete(file, where);
+  probe_readable(file, where);
   openvdb::io::File f(file.string());
   try {
     f.open(false);
