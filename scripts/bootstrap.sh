@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One command from a fresh Debian machine: install what is missing, build, then
 #   bootstrap.sh bake   bake the shipped default scene into out/default
-#   bootstrap.sh test   run the whole test suite through ctest
+#   bootstrap.sh test   run the whole test suite through ctest, then the fast set under ASan and
+#                       UBSan and every fuzzer (scripts/sanitize.sh)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode="${1:-bake}"
@@ -17,4 +18,5 @@ if [ "$mode" = bake ]; then
   ./build/lblight inspect out/default
 else
   ctest --test-dir build --output-on-failure -j"$jobs"
+  scripts/sanitize.sh build-asan   # the fast set under ASan + UBSan, then every fuzzer
 fi

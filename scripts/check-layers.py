@@ -93,7 +93,8 @@ def main():
     checked = 0
     for dirpath, dirnames, filenames in os.walk(root):
         rel_dir = os.path.relpath(dirpath, root).replace(os.sep, '/')
-        dirnames[:] = [d for d in dirnames if d not in SKIP and not d.startswith('.')]
+        dirnames[:] = [d for d in dirnames
+                       if d not in SKIP and not d.startswith('.') and not (rel_dir == '.' and d.startswith('build'))]
         for name in filenames:
             if not name.endswith(SOURCES):
                 continue

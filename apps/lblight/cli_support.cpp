@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <sstream>
+#include <thread>
 
 #include <unistd.h>
 
@@ -46,6 +47,13 @@ void install_signal_handlers() {
 }
 
 void throw_if_interrupted() { throw_if_cancelled(&g_interrupted); }
+
+int usable_threads(int requested) {
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (requested <= 4 * cores) return requested;
+  spdlog::warn("--threads {} on {} core(s): using {}", requested, cores, 4 * cores);
+  return 4 * cores;
+}
 
 CLI::Validator finite_range(double lo, double hi) {
   auto text = [](double v) {

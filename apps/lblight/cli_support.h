@@ -58,4 +58,8 @@ Precision parse_precision(const std::string& text);
 
 std::string command_line(int argc, char** argv);
 
+// A --threads value as it will be used: more than 4 per core buys nothing and can exceed what the
+// system lets a process start (the OpenMP runtime then aborts, mid-bake): clamped, with a warning.
+int usable_threads(int requested);
+
 }  // namespace lblight::cli

@@ -31,7 +31,7 @@ struct BenchArgs {
 };
 
 int run_bench(const BenchArgs& a) {
-  auto backend = make_backend({a.backend, a.threads, a.device});
+  auto backend = make_backend({a.backend, usable_threads(a.threads), a.device});
   for (const std::string& pname : a.precisions)
     if (!backend->supports(parse_precision(pname)))
       throw_invalid("--precision " + pname + ": the " + backend->name() + " backend does not store it; allowed here: " +

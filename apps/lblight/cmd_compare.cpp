@@ -48,6 +48,10 @@ double grid_difference(const DenseGridIn& ref, const DenseGridIn& got, const fs:
   if (!(got.frame.dims == ref.frame.dims) || got.frame.index_min != ref.frame.index_min)
     throw_invalid("grid '" + got.name + "' covers another lattice box than in " + ref_file.string(),
                   {got_file.string(), {}, {}});
+  if (got.frame.index_to_world != ref.frame.index_to_world)
+    throw_invalid("grid '" + got.name + "' has another transform (voxel size, rotation or position in the world) "
+                  "than in " + ref_file.string(),
+                  {got_file.string(), {}, {}});
   double largest = 0.0;
   for (const auto& ch : ref.values) keep_worst(largest, peak_magnitude(ch));
   const double floor = std::max(1e-30, 1e-6 * largest);

@@ -53,7 +53,7 @@ int run_compress(const CompressArgs& a) {
     if (grids.empty()) throw_invalid("no grid names in '" + a.grids + "'; give e.g. B00,B06", {"--grids", {}, {}});
   }
   const LbhFileContents c =
-      compress_vdb(in, {a.threshold, a.relative, *parse_lbh_coefficients(a.coefficients)}, grids, a.threads);
+      compress_vdb(in, {a.threshold, a.relative, *parse_lbh_coefficients(a.coefficients)}, grids, usable_threads(a.threads));
   write_lbh(out, c.frame, c.solutions);
 
   nlohmann::json j;

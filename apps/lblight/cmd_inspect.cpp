@@ -9,6 +9,8 @@
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
+#include "lblight/core/input_file.h"
+#include "lblight/core/system_info.h"
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/pipeline/manifest.h"
 #include "lblight/io/vdb_io.h"
@@ -80,6 +82,8 @@ std::string vdb_text(const nlohmann::json& j) {
 // .lbh: validated by the reader library itself (the same checks a renderer runs).
 nlohmann::json lbh_summary(const fs::path& file) {
   lbh::Stream s;
+  check_host_memory(static_cast<double>(check_regular_file(file, ".lbh file")) * 2.0, "reading " + file.string(),
+                    "inspect a smaller file", {file.string(), {}, {}});
   if (const lbh::Status st = s.open_file(file.string()); st != lbh::Status::Ok) {
     if (st == lbh::Status::IoError) throw_io(s.error());
     throw_invalid(s.error());

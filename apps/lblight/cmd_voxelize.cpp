@@ -52,7 +52,7 @@ int run_voxelize(const VoxelizeArgs& a, const GlobalOptions& global) {
   if (!fs::is_directory(folder)) throw_invalid("output folder " + folder.string() + " does not exist");
   check_output_file(a.mesh, out, ".vdb");
 
-  const MeshVoxels mv = voxelize_mesh_source(src, a.padding, {}, {&g_interrupted, a.threads, {}});
+  const MeshVoxels mv = voxelize_mesh_source(src, a.padding, {}, {&g_interrupted, usable_threads(a.threads), {}});
   const ModelGrid& g = mv.voxels.grid;
   const VoxelizeStats& st = mv.voxels.stats;
 

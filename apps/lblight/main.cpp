@@ -42,6 +42,24 @@ int main(int argc, char** argv) {
       cli::add_compare_command(app, global),
   };
 
+  // The first word that is not a flag names the command (the global flags take no values); CLI11
+  // would only say that a command is required.
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (word.empty() || word[0] == '-') continue;
+    std::string names;
+    bool known = false;
+    for (const cli::Command& c : commands) {
+      names += (names.empty() ? "" : ", ") + c.app->get_name();
+      known = known || c.app->get_name() == word;
+    }
+    if (!known) {
+      std::cerr << "error: unknown command '" << word.substr(0, 80) << "'; allowed: " << names
+                << "\nRun 'lblight --help' for what each does.\n";
+      return 2;
+    }
+    break;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {  // --help, --version (CallForHelp derives from Success)

@@ -54,14 +54,14 @@ PlanOverrides SolveOptions::overrides() const {
 RunContext SolveOptions::run_context() const {
   RunContext ctx;
   ctx.cancel = &g_interrupted;
-  ctx.threads = threads;
+  ctx.threads = usable_threads(threads);
   return ctx;
 }
 
 std::unique_ptr<Backend> SolveOptions::make_backend() const {
   BackendRequest req;
   req.name = backend;
-  req.threads = threads;
+  req.threads = usable_threads(threads);
   req.device = device;
   return lblight::make_backend(req);
 }

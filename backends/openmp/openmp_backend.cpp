@@ -599,7 +599,7 @@ class OpenMpBackend final : public Backend {
     return (2 * kQ * padded + 2 * d.count()) * v;
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
-  std::size_t available_bytes() const override { return host_available_memory_bytes(); }
+  std::size_t available_bytes() const override { return host_memory_limit().bytes; }
   std::size_t cache_bytes() const override { return host_last_level_cache_bytes(); }
   int preferred_batch(const Dims&, Precision, int total_systems) const override { return std::min(total_systems, 3); }
 

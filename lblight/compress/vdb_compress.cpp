@@ -5,6 +5,8 @@
 #include <cmath>
 
 #include "lblight/core/error.h"
+#include "lblight/core/input_file.h"
+#include "lblight/core/system_info.h"
 #include "lblight/core/version.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
@@ -69,13 +71,20 @@ LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSetting
       for (int a = 0; a < 3; ++a) in.direction[a] = std::clamp(g.metadata["lblight_direction"][a].get<int>(), -1, 1);
     else if (in.index >= 0)
       in.direction = {lbh::lattice_cx(in.index), lbh::lattice_cy(in.index), lbh::lattice_cz(in.index)};
-    out.solutions.push_back(encode_lbh_solution(frame, in, threshold, threads));
+    try {
+      out.solutions.push_back(encode_lbh_solution(frame, in, threshold, threads));
+    } catch (const Error& e) {  // name the file the values came from
+      if (e.category() != ErrorCategory::InvalidInput) throw;
+      throw_invalid("grid '" + in.name + "': " + e.message(), {file.string(), {}, e.where().voxel});
+    }
   }
   return out;
 }
 
 void decompress_lbh(const std::filesystem::path& lbh_path, const std::filesystem::path& vdb) {
   lbh::Stream s;
+  check_host_memory(static_cast<double>(check_regular_file(lbh_path, ".lbh file")) * 2.0,
+                    "reading " + lbh_path.string(), "decompress a smaller file", {lbh_path.string(), {}, {}});
   if (const lbh::Status st = s.open_file(lbh_path.string()); st != lbh::Status::Ok) {
     if (st == lbh::Status::IoError) throw_io(s.error());
     throw_invalid(s.error());
@@ -85,6 +94,14 @@ void decompress_lbh(const std::filesystem::path& lbh_path, const std::filesystem
   frame.dims = {h.dims[0], h.dims[1], h.dims[2]};
   frame.index_min = {h.index_min[0], h.index_min[1], h.index_min[2]};
   std::copy(h.index_to_world, h.index_to_world + 16, frame.index_to_world.begin());
+  const Location where{lbh_path.string(), {}, {}};
+  frame.check("the lattice of the stream", where);
+  // every solution densely, plus one decoded in interleaved form, and OpenVDB's copy of one
+  check_host_memory(static_cast<double>(frame.dims.count()) * 12.0 * static_cast<double>(s.solution_count() + 2),
+                    "decompressing " + std::to_string(s.solution_count()) + " solution(s) of a " +
+                        std::to_string(frame.dims.nx) + "x" + std::to_string(frame.dims.ny) + "x" +
+                        std::to_string(frame.dims.nz) + " lattice",
+                    "decompress on a machine with more memory", where);
   const nlohmann::json lattice_box = {{"lblight_lattice_min", frame.index_min},
                                       {"lblight_lattice_dims", {frame.dims.nx, frame.dims.ny, frame.dims.nz}}};
 

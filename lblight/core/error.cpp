@@ -5,7 +5,17 @@
 namespace lblight {
 
 namespace {
-std::string compose(const std::string& message, const Location& where) {
+// A message quotes input (names, paths, values); hostile input can make that megabytes. Each part
+// is cut to a size a terminal and a log can take, saying how much was left out.
+constexpr std::size_t kMaxPart = 2000;
+std::string bounded(const std::string& s) {
+  if (s.size() <= kMaxPart) return s;
+  return s.substr(0, kMaxPart) + "... (" + std::to_string(s.size() - kMaxPart) + " more characters)";
+}
+
+std::string compose(const std::string& raw_message, const Location& raw_where) {
+  const std::string message = bounded(raw_message);
+  Location where{bounded(raw_where.file), bounded(raw_where.json_path), bounded(raw_where.voxel)};
   std::string text;
   if (!where.file.empty()) text += where.file;
   if (!where.json_path.empty()) text += (text.empty() ? "" : ": ") + where.json_path;
@@ -19,7 +29,7 @@ Error::Error(ErrorCategory category, const std::string& message, Location where)
     : std::runtime_error(compose(message, where)),
       category_(category),
       where_(std::move(where)),
-      message_(message) {}
+      message_(bounded(message)) {}
 
 void throw_invalid(const std::string& message, Location where) {
   throw Error(ErrorCategory::InvalidInput, message, std::move(where));

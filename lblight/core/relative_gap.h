@@ -11,9 +11,11 @@
 
 namespace lblight {
 
-// worst = max(worst, v), except that a NaN v sticks: std::max(worst, NaN) keeps worst, so a
-// comparison built on it would pass a broken result.
+// worst = max(worst, v), except that NaN sticks: std::max(worst, NaN) keeps worst, and once
+// worst is NaN every later value would replace it, so a comparison built on either would pass a
+// broken result.
 inline void keep_worst(double& worst, double v) {
+  if (std::isnan(worst)) return;
   if (!(v <= worst)) worst = v;
 }
 

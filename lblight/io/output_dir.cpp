@@ -15,6 +15,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/core/input_file.h"
+#include "lblight/core/json_depth.h"
 
 namespace fs = std::filesystem;
 
@@ -64,6 +65,7 @@ bool marker_matches(const fs::path& file, const KindRules& r) {
   } catch (const Error&) {
     return false;
   }
+  if (json_nesting_depth(text) > 64) return false;  // lblight's markers nest a few levels
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (!j.is_object()) return false;
   for (const char* k : r.marker_keys)

@@ -2,8 +2,12 @@
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/GridDescriptor.h>
+#if LBLIGHT_SILENCE_OPENVDB
+#include <log4cplus/logger.h>
+#endif
 #include <openvdb/tools/Dense.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <mutex>
@@ -24,7 +28,15 @@ namespace vdb_detail {
 
 void ensure_initialized() {
   static std::once_flag once;
-  std::call_once(once, [] { openvdb::initialize(); });
+  std::call_once(once, [] {
+    openvdb::initialize();
+    // OpenVDB would print its own (coloured) warnings about the files it reads; lblight turns
+    // what matters into its own errors, naming the file. Debian's OpenVDB logs through log4cplus
+    // (its headers: liblog4cplus-dev); without them its warnings still show.
+#if LBLIGHT_SILENCE_OPENVDB
+    log4cplus::Logger::getInstance(LOG4CPLUS_TEXT("openvdb")).setLogLevel(log4cplus::FATAL_LOG_LEVEL);
+#endif
+  });
 }
 
 openvdb::math::Transform::Ptr to_vdb_transform(const std::array<double, 16>& m) {
@@ -95,6 +107,11 @@ class CompletenessCheck : public openvdb::io::Archive {
     if (!is) throw_io("cannot open file", where);
     try {
       readHeader(is);
+      if (!is) throw_invalid("not a readable OpenVDB file: the header is cut short", where);
+      if (fileVersion() > openvdb::OPENVDB_FILE_VERSION)
+        throw_invalid("written in OpenVDB file format " + std::to_string(fileVersion()) + ", newer than the " +
+                          std::to_string(openvdb::OPENVDB_FILE_VERSION) + " this lblight reads",
+                      where);
       setFormatVersion(is);
       setLibraryVersion(is);
       setDataCompression(is);
@@ -103,31 +120,47 @@ class CompletenessCheck : public openvdb::io::Archive {
       openvdb::MetaMap meta;
       meta.readMeta(is);
       const std::int32_t count = readGridCount(is);
+      if (!is || count < 0 || count > 100000)
+        throw_invalid("not a readable OpenVDB file: it claims " + std::to_string(count) + " grids", where);
       for (std::int32_t i = 0; i < count; ++i) {
         openvdb::io::GridDescriptor gd;
         gd.read(is);
-        if (!is || gd.getEndPos() > size || gd.getEndPos() < gd.getGridPos() || gd.getGridPos() < 0)
+        if (!is || gd.getEndPos() > size || gd.getEndPos() < gd.getGridPos() || gd.getGridPos() < 0 ||
+            gd.getBlockPos() < gd.getGridPos() || gd.getBlockPos() > gd.getEndPos())
           throw_invalid("the file is truncated or corrupt: grid '" + gd.gridName() + "' ends at byte " +
                             std::to_string(gd.getEndPos()) + " of a " + std::to_string(size) + "-byte file",
                         where);
+        names_.push_back(gd.gridName());
         is.seekg(gd.getEndPos());
       }
-    } catch (const openvdb::Exception& e) {  // the stream throws nothing itself: failures leave it !is
-      throw_invalid(std::string("not a readable OpenVDB file (truncated or corrupt?): ") + e.what(), where);
+    } catch (const Error&) {
+      throw;
+    } catch (const std::exception& e) {  // OpenVDB's own, and allocations a corrupt size asked for
+      const bool size = dynamic_cast<const std::bad_alloc*>(&e) || dynamic_cast<const std::length_error*>(&e);
+      throw_invalid(std::string("not a readable OpenVDB file (truncated or corrupt?): ") +
+                        (size ? "it asks for an impossible amount of memory" : e.what()),
+                    where);
     }
     if (!is) throw_invalid("not a readable OpenVDB file (truncated or corrupt?)", where);
   }
+  const std::vector<std::string>& names() const { return names_; }
+
+ private:
+  std::vector<std::string> names_;  // of every grid, in file order
 };
 
-void check_complete(const std::filesystem::path& path, const Location& where) {
-  CompletenessCheck().run(path, where);
+// The grid names of a complete file, in file order.
+std::vector<std::string> check_complete(const std::filesystem::path& path, const Location& where) {
+  CompletenessCheck c;
+  c.run(path, where);
+  return c.names();
 }
 
 // Every grid of `path` read once in a child process (run_isolated) before this process reads
 // any: OpenVDB crashes, or allocates without end, on some corrupt files that pass the
 // completeness check, and that must be an input error here, not a crash. Reading and walking
 // the leaves are serial (no TBB in a forked child). Once per file and size.
-void probe_readable(const std::filesystem::path& path, const Location& where) {
+void probe_readable(const std::filesystem::path& path, const Location& where, const RunContext& ctx) {
   static std::mutex mutex;
   static std::set<std::pair<std::string, std::uintmax_t>> probed;
   std::error_code ec;
@@ -155,7 +188,7 @@ void probe_readable(const std::filesystem::path& path, const Location& where) {
         }
         file.close();
       },
-      600.0, {}, limit.bytes);
+      600.0, ctx, limit.bytes);
   switch (o.kind) {
     case IsolatedOutcome::Kind::Ok: break;
     case IsolatedOutcome::Kind::Threw: throw_invalid(path.string() + ": " + o.message, where);
@@ -172,11 +205,16 @@ void probe_readable(const std::filesystem::path& path, const Location& where) {
   probed.insert(key);
 }
 
-openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where) {
+openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where,
+                                 const RunContext& ctx) {
   ensure_initialized();
   check_regular_file(path, "VDB file", where);
-  check_complete(path, {path.string(), {}, {}});
-  probe_readable(path, where);
+  const std::vector<std::string> names = check_complete(path, {path.string(), {}, {}});
+  if (std::count(names.begin(), names.end(), name) > 1)
+    throw_invalid("VDB file " + path.string() + " holds more than one grid named '" + name +
+                      "'; allowed: one grid of each name (which one is meant is not clear)",
+                  where);
+  probe_readable(path, where, ctx);
   openvdb::io::File file(path.string());
   try {
     file.open(/*delayLoad=*/false);  // read every leaf in readGrid below, where errors are caught
@@ -226,8 +264,8 @@ nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
 }  // namespace
 
 ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string& density_grid,
-                            const std::string& wood_grid, const Location& where) {
-  auto base = open_grid(file, density_grid, where);
+                            const std::string& wood_grid, const Location& where, const RunContext& ctx) {
+  auto base = open_grid(file, density_grid, where, ctx);
   auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
   if (!grid)
     throw_invalid("grid '" + density_grid + "' in " + file.string() + " is of type " + base->valueType() +
@@ -253,7 +291,7 @@ ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string&
   openvdb::tools::copyToDense(*grid, dense);
 
   if (!wood_grid.empty()) {
-    auto wbase = open_grid(file, wood_grid, where);
+    auto wbase = open_grid(file, wood_grid, where, ctx);
     if (wbase->transform() != grid->transform())
       throw_invalid("wood grid '" + wood_grid + "' does not share the transform of density grid '" + density_grid + "'",
                     where);
@@ -283,9 +321,9 @@ ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string&
   return g;
 }
 
-DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& name) {
+DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& name, const RunContext& ctx) {
   const Location where{file.string(), {}, {}};
-  auto base = open_grid(file, name, where);
+  auto base = open_grid(file, name, where, ctx);
   DenseGridIn out;
   out.name = name;
   out.type = base->valueType();
@@ -343,12 +381,12 @@ DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::st
   return out;
 }
 
-nlohmann::json inspect_vdb(const std::filesystem::path& file) {
+nlohmann::json inspect_vdb(const std::filesystem::path& file, const RunContext& ctx) {
   ensure_initialized();
   const Location where{file.string(), {}, {}};
   check_regular_file(file, "VDB file", where);
   check_complete(file, where);
-  probe_readable(file, where);
+  probe_readable(file, where, ctx);
   openvdb::io::File f(file.string());
   try {
     f.open(false);
@@ -367,8 +405,12 @@ nlohmann::json inspect_vdb(const std::filesystem::path& file) {
     e["class"] = openvdb::GridBase::gridClassToString(g->getGridClass());
     const auto meta = metadata_to_json(*g);
     if (meta.contains("file_bbox_min") && meta.contains("file_bbox_max")) {
-      e["bbox_min"] = meta["file_bbox_min"];
-      e["bbox_max"] = meta["file_bbox_max"];
+      const nlohmann::json &lo = meta["file_bbox_min"], &hi = meta["file_bbox_max"];
+      // an empty grid's box is written as (INT_MAX..INT_MIN): say so rather than show it
+      const bool empty = lo.is_array() && hi.is_array() && lo.size() == 3 && hi.size() == 3 &&
+                         lo[0].is_number() && hi[0].is_number() && lo[0].get<double>() > hi[0].get<double>();
+      e["bbox_min"] = empty ? nlohmann::json("empty") : lo;
+      e["bbox_max"] = empty ? nlohmann::json("empty") : hi;
     }
     if (meta.contains("file_voxel_count")) e["active_voxels"] = meta["file_voxel_count"];
     const openvdb::Vec3d vs = g->voxelSize();

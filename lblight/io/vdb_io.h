@@ -1,3 +1,5 @@
+// Every .vdb is read once in a child process before it is read here (a corrupt file that crashes
+// or hangs OpenVDB becomes an input error); ctx.cancel stops that wait.
 // Everything that touches OpenVDB lives behind this header (one translation unit compiles
 // openvdb.h, which is slow to build and does not compile under nvcc).
 #pragma once
@@ -11,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lblight/core/error.h"
+#include "lblight/core/run_context.h"
 #include "lblight/lattice/dense_grid.h"
 
 namespace lblight {
@@ -19,7 +22,7 @@ namespace lblight {
 // wood) into a dense ModelGrid over the density grid's active bounding box. Throws
 // Error(InvalidInput) naming file and grid.
 ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string& density_grid,
-                           const std::string& wood_grid, const Location& where);
+                           const std::string& wood_grid, const Location& where, const RunContext& ctx = {});
 
 // One grid to write: a float grid (scalar) or a Vec3f grid (rgb), over a dense lattice.
 struct DenseGridOut {
@@ -41,9 +44,9 @@ struct DenseGridIn {
   std::array<std::vector<float>, 3> values;  // 1 or 3 channels used
   nlohmann::json metadata;
 };
-DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& grid);
+DenseGridIn read_vdb_grid_dense(const std::filesystem::path& file, const std::string& grid, const RunContext& ctx = {});
 
 // Grid names, types, classes, bounding boxes, transforms and metadata, without voxel data.
-nlohmann::json inspect_vdb(const std::filesystem::path& file);
+nlohmann::json inspect_vdb(const std::filesystem::path& file, const RunContext& ctx = {});
 
 }  // namespace lblight

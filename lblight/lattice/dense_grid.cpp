@@ -14,12 +14,13 @@ void check_index_box(const std::array<std::int64_t, 3>& lo, const std::array<std
   for (int a = 0; a < 3; ++a) {
     if (hi[a] < lo[a]) throw_invalid(what + " is empty " + box(), where);
     if (lo[a] < -kMaxIndexCoord || hi[a] > kMaxIndexCoord)
-      throw_invalid(what + " spans index coordinates " + box() + "; allowed: within -" + std::to_string(kMaxIndexCoord) +
-                        ".." + std::to_string(kMaxIndexCoord),
+      throw_invalid(what + " lies too far out: it spans index coordinates " + box() + "; allowed: within -" +
+                        std::to_string(kMaxIndexCoord) + ".." + std::to_string(kMaxIndexCoord),
                     where);
     if (hi[a] - lo[a] + 1 > kMaxNodesPerAxis)
-      throw_invalid(what + " spans " + std::to_string(hi[a] - lo[a] + 1) + " nodes along axis " + "xyz"[a] + " " +
-                        box() + "; allowed: at most " + std::to_string(kMaxNodesPerAxis),
+      throw_invalid(what + " is too large: it spans " + std::to_string(hi[a] - lo[a] + 1) + " nodes along axis " +
+                        "xyz"[a] + " " + box() + "; allowed: at most " + std::to_string(kMaxNodesPerAxis) +
+                        " (a dense lattice that size does not fit in memory)",
                     where);
   }
 }

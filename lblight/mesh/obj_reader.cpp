@@ -25,6 +25,15 @@ std::vector<std::string_view> split_ws(std::string_view s) {
   return out;
 }
 
+// A token for a message: hostile files hold megabyte-long "numbers".
+std::string quoted(std::string_view t) {
+  constexpr std::size_t kMax = 40;
+  return t.size() <= kMax ? std::string(t) : std::string(t.substr(0, kMax)) + "...";
+}
+
+// The longest line an OBJ file may have (a face of 10000 vertices takes ~100 KB).
+constexpr std::size_t kMaxLineBytes = 1u << 20;
+
 std::string trimmed_rest(std::string_view line, std::size_t keyword_len) {
   std::string_view s = line.substr(std::min(keyword_len, line.size()));
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -42,9 +51,32 @@ class ObjParser {
     throw_invalid(name_ + ":" + std::to_string(line_no_) + ": " + what, where_);
   }
 
+  // One line into `raw`, at most kMaxLineBytes, refusing binary data; false at the end.
+  bool next_line(std::istream& in, std::string& raw) {
+    raw.clear();
+    std::streambuf* buf = in.rdbuf();
+    for (;;) {
+      const int c = buf->sbumpc();
+      if (c == std::char_traits<char>::eof()) {
+        in.setstate(std::ios::eofbit);
+        return !raw.empty();
+      }
+      if (c == '\n') return true;
+      if (c == 0) {
+        ++line_no_;
+        fail("holds binary data (a NUL byte); allowed: a text Wavefront OBJ file");
+      }
+      raw.push_back(static_cast<char>(c));
+      if (raw.size() > kMaxLineBytes) {
+        ++line_no_;
+        fail("line is longer than " + std::to_string(kMaxLineBytes) + " bytes; allowed: text lines of an OBJ file");
+      }
+    }
+  }
+
   void parse(std::istream& in) {
     std::string raw, line;
-    while (std::getline(in, raw)) {
+    while (next_line(in, raw)) {
       ++line_no_;
       if (!raw.empty() && raw.back() == '\r') raw.pop_back();
       // A trailing backslash continues the statement on the next line.
@@ -54,6 +86,7 @@ class ObjParser {
         continue;
       }
       line += raw;
+      if (line.size() > kMaxLineBytes) fail("statement is longer than " + std::to_string(kMaxLineBytes) + " bytes");
       statement(line);
       line.clear();
     }
@@ -97,8 +130,8 @@ class ObjParser {
     if (!t.empty() && t[0] == '+') ++first;  // from_chars does not take a leading '+'
     const auto r = std::from_chars(first, end, x);
     if (r.ec == std::errc::result_out_of_range || (r.ec == std::errc() && r.ptr == end && !std::isfinite(x)))
-      fail(std::string(what) + " '" + std::string(t) + "' is not a finite number");
-    if (r.ec != std::errc() || r.ptr != end) fail(std::string(what) + " '" + std::string(t) + "' is not a number");
+      fail(std::string(what) + " '" + quoted(t) + "' is not a finite number");
+    if (r.ec != std::errc() || r.ptr != end) fail(std::string(what) + " '" + quoted(t) + "' is not a number");
     return x;
   }
 
@@ -120,11 +153,11 @@ class ObjParser {
     long long idx = 0;
     const auto r = std::from_chars(v.data(), v.data() + v.size(), idx);
     if (v.empty() || r.ec != std::errc() || r.ptr != v.data() + v.size())
-      fail("face vertex '" + std::string(t) + "' is not a vertex index");
+      fail("face vertex '" + quoted(t) + "' is not a vertex index");
     if (idx == 0) fail("face vertex index 0 is invalid (OBJ indices start at 1, negative ones count back)");
     const long long n = static_cast<long long>(mesh_.vertices.size());
     if (idx < 0) {
-      if (-idx > n)
+      if (idx < -n)  // (not -idx > n: -INT64_MIN overflows)
         fail("face vertex " + std::to_string(idx) + " points before the first vertex (" + std::to_string(n) +
              " defined so far)");
       return static_cast<std::uint32_t>(n + idx);

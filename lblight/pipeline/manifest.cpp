@@ -2,6 +2,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/core/input_file.h"
+#include "lblight/scene/json_reader.h"
 
 namespace fs = std::filesystem;
 
@@ -35,8 +36,8 @@ class Checker {
 
 nlohmann::json parse_manifest(const std::string& text, const std::string& file) {
   const Checker c(file);
-  nlohmann::json m = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (m.is_discarded()) c.fail("", "not valid JSON");
+  // depth-checked before the document is built: a million nested arrays would overflow the stack
+  nlohmann::json m = JsonReader::parse_strict(text, file);
   if (!m.is_object()) c.fail("", "the top level must be an object");
   const nlohmann::json& models = c.member(m, "", "models");
   if (!models.is_array()) c.fail("/models", "must be an array");

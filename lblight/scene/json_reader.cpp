@@ -8,6 +8,16 @@ namespace lblight {
 
 namespace {
 
+// The JSON library's message without its "[json.exception.parse_error.101] " tag.
+std::string plain_json_message(const std::exception& e) {
+  std::string s = e.what();
+  if (s.rfind("[json.exception.", 0) == 0) {
+    const std::size_t end = s.find("] ");
+    if (end != std::string::npos) s = s.substr(end + 2);
+  }
+  return s;
+}
+
 // SAX pass that only checks structure: open containers with the keys seen so far.
 class StrictStructure final : public nlohmann::json_sax<nlohmann::json> {
  public:
@@ -33,8 +43,11 @@ class StrictStructure final : public nlohmann::json_sax<nlohmann::json> {
   }
   bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception& e) override {
     // Includes numbers too large for a double (1e999): JSON has no Inf or NaN, so a value that
-    // would overflow is rejected here, with the offending text in the message.
-    throw_invalid(std::string("not valid JSON (allowed: finite numbers only): ") + e.what(), {file_, {}, {}});
+    // would overflow is rejected here, with the offending text and the field in the message.
+    const bool overflow = e.id == 406;
+    throw_invalid(std::string("not valid JSON: ") + plain_json_message(e) +
+                      (overflow ? "; allowed: finite numbers" : ""),
+                  {file_, field(), {}});
   }
 
  private:
@@ -59,6 +72,11 @@ class StrictStructure final : public nlohmann::json_sax<nlohmann::json> {
     stack_.pop_back();
     return value();
   }
+  // The pointer of the field being read when there is one ("" before the first key).
+  std::string field() const {
+    if (stack_.empty() || (stack_.size() == 1 && stack_[0].object && stack_[0].key.empty())) return "";
+    return pointer();
+  }
   // JSON pointer of the value being read (keys unescaped: for messages only).
   std::string pointer() const {
     std::string p;
@@ -78,7 +96,7 @@ nlohmann::json JsonReader::parse_strict(const std::string& text, const std::stri
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {  // not expected after the pass above
-    throw_invalid(std::string("not valid JSON: ") + e.what(), {file, {}, {}});
+    throw_invalid(std::string("not valid JSON: ") + plain_json_message(e), {file, {}, {}});
   }
 }
 

@@ -11,10 +11,12 @@ namespace lblight {
 ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const RunContext& ctx) {
   ModelGrid g;
   switch (model.density.type) {
-    case SourceType::Procedural: g = make_procedural(model.density.procedural); break;
+    case SourceType::Procedural:
+      g = make_procedural(model.density.procedural, {scene.file.string(), model.density.json_path + "/resolution", {}});
+      break;
     case SourceType::Vdb: {
       const VdbSource& v = model.density.vdb;
-      g = read_vdb_density(v.path, v.grid, v.wood_grid, {scene.file.string(), model.density.json_path, {}});
+      g = read_vdb_density(v.path, v.grid, v.wood_grid, {scene.file.string(), model.density.json_path, {}}, ctx);
       break;
     }
     case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}, ctx);

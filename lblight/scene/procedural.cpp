@@ -202,10 +202,10 @@ ModelGrid make_box(const ProceduralSource& s) {
 
 }  // namespace
 
-ModelGrid make_procedural(const ProceduralSource& src) {
+ModelGrid make_procedural(const ProceduralSource& src, const Location& where) {
   const double r = src.resolution;
   check_host_memory(r * r * r * 5.0, "a procedural " + src.shape + " at resolution " + std::to_string(src.resolution),
-                    "lower the resolution");
+                    "lower the resolution", where);
   if (src.shape == "box") return make_box(src);
   if (src.shape == "cloud") return make_cloud(src);
   if (src.shape == "plant") return make_plant(src);

@@ -133,6 +133,13 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, const RunContext& ctx, std:
   const ModelSpec& spec = *mp.spec;
   mp.grid = load_model_grid(spec, scene, ctx);
   mp.stats = check_stability(spec, mp.grid, scene, warnings);
+  const std::array<double, 3> vs = mp.grid.voxel_size();
+  const double lo = std::min({vs[0], vs[1], vs[2]}), hi = std::max({vs[0], vs[1], vs[2]});
+  if (hi > lo * (1 + 1e-6))
+    warnings.push_back("model '" + spec.name + "': voxels are " + message_number(vs[0]) + " x " + message_number(vs[1]) +
+                       " x " + message_number(vs[2]) +
+                       " (not cubic); the lattice treats them as cubes, so light travels as in the grid stretched "
+                       "to cubic voxels: resample the grid to cubic voxels for physical light");
   const Dims full = mp.grid.dims;
   mp.savings.full_lattice = {full.nx + 2 * spec.margin, full.ny + 2 * spec.margin, full.nz + 2 * spec.margin};
   if (spec.crop) {
