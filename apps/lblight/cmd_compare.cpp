@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 
 #include <nlohmann/json.hpp>
 
@@ -26,6 +27,7 @@ namespace {
 struct CompareArgs {
   std::string reference, other;
   double tolerance = 1e-5;
+  std::string metric = "max";
 };
 
 // The bake output `dir`'s manifest; a folder without one is not an lblight output.
@@ -40,8 +42,8 @@ nlohmann::json output_manifest(const fs::path& dir) {
 // Per grid, each value's difference relative to the reference value; values below 1e-6 of the
 // grid's largest are measured against that floor: light that faint is rounding noise in either bake.
 // Grids of another type or lattice are not comparable (an input error, not a difference).
-double grid_difference(const DenseGridIn& ref, const DenseGridIn& got, const fs::path& ref_file,
-                       const fs::path& got_file) {
+void check_comparable(const DenseGridIn& ref, const DenseGridIn& got, const fs::path& ref_file,
+                      const fs::path& got_file) {
   if (got.type != ref.type)
     throw_invalid("grid '" + got.name + "' is " + got.type + " here but " + ref.type + " in " + ref_file.string(),
                   {got_file.string(), {}, {}});
@@ -52,6 +54,11 @@ double grid_difference(const DenseGridIn& ref, const DenseGridIn& got, const fs:
     throw_invalid("grid '" + got.name + "' has another transform (voxel size, rotation or position in the world) "
                   "than in " + ref_file.string(),
                   {got_file.string(), {}, {}});
+}
+
+double grid_difference(const DenseGridIn& ref, const DenseGridIn& got, const fs::path& ref_file,
+                       const fs::path& got_file) {
+  check_comparable(ref, got, ref_file, got_file);
   double largest = 0.0;
   for (const auto& ch : ref.values) keep_worst(largest, peak_magnitude(ch));
   const double floor = std::max(1e-30, 1e-6 * largest);
@@ -59,6 +66,45 @@ double grid_difference(const DenseGridIn& ref, const DenseGridIn& got, const fs:
   for (std::size_t c = 0; c < ref.values.size(); ++c)
     keep_worst(worst, max_relative_difference(ref.values[c], got.values[c], floor));
   return worst;
+}
+
+// sum over the nodes of `mask` and every channel of (a - b)^2, b = 0 when absent.
+double masked_sum_sq(const std::array<std::vector<float>, 3>& a, const std::array<std::vector<float>, 3>* b,
+                     const std::vector<bool>& mask) {
+  double sum = 0;
+  for (std::size_t c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < a[c].size() && i < mask.size(); ++i)
+      if (mask[i]) {
+        const double d = static_cast<double>(a[c][i]) - (b && i < (*b)[c].size() ? (*b)[c][i] : 0.0f);
+        sum += d * d;
+      }
+  return sum;
+}
+
+// sqrt(sum (got - ref)^2 / sum ref^2) over the nodes of `mask` and every channel: the error
+// measure of docs/truth.md (a bake against the Monte Carlo reference).
+double relative_l2(const std::array<std::vector<float>, 3>& ref, const std::array<std::vector<float>, 3>& got,
+                   const std::vector<bool>& mask) {
+  const double diff = masked_sum_sq(got, &ref, mask), norm = masked_sum_sq(ref, nullptr, mask);
+  return norm > 0 ? std::sqrt(diff / norm) : (diff > 0 ? std::numeric_limits<double>::infinity() : 0.0);
+}
+
+// The nodes the L2 metric measures: occupied ones (density > 0 in the reference), else all.
+std::vector<bool> occupied_nodes(const fs::path& ref_file, const DenseGridIn& like) {
+  const DenseGridIn density = read_vdb_grid_dense(ref_file, "density");
+  std::vector<bool> mask(like.values[0].size(), true);
+  if (!(density.frame.dims == like.frame.dims) || density.frame.index_min != like.frame.index_min) return mask;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < mask.size(); ++i) n += (mask[i] = density.values[0][i] > 0.0f);
+  if (n == 0) mask.assign(mask.size(), true);
+  return mask;
+}
+
+bool has_grid(const fs::path& file, const std::string& grid) {
+  const nlohmann::json info = inspect_vdb(file);  // kept: the loop reads into it
+  for (const auto& g : info.at("grids"))
+    if (g.value("name", "") == grid) return true;
+  return false;
 }
 
 int compare_outputs(const CompareArgs& a) {
@@ -85,10 +131,30 @@ int compare_outputs(const CompareArgs& a) {
     const std::size_t oi = static_cast<std::size_t>(it - other.at("models").begin());
     const fs::path fa = manifest_file(ref_dir, model.at("file"), "/models/" + std::to_string(mi) + "/file");
     const fs::path fb = manifest_file(other_dir, it->at("file"), "/models/" + std::to_string(oi) + "/file");
+    std::vector<bool> mask;
     for (const auto& s : model.at("solutions")) {
       const std::string grid = s.at("grid");
-      const double d = grid_difference(read_vdb_grid_dense(fa, grid), read_vdb_grid_dense(fb, grid), fa, fb);
-      std::printf("%s %s: max relative difference %.3g\n", name.c_str(), grid.c_str(), d);
+      const DenseGridIn ref_grid = read_vdb_grid_dense(fa, grid), got_grid = read_vdb_grid_dense(fb, grid);
+      double d = 0;
+      if (a.metric == "l2") {
+        check_comparable(ref_grid, got_grid, fa, fb);
+        if (mask.empty()) mask = occupied_nodes(fa, ref_grid);
+        d = relative_l2(ref_grid.values, got_grid.values, mask);
+        std::string own;
+        if (has_grid(fa, grid + "_se")) {  // a Monte Carlo reference: its own noise, for scale
+          const DenseGridIn se = read_vdb_grid_dense(fa, grid + "_se");
+          const double norm = masked_sum_sq(ref_grid.values, nullptr, mask);
+          char buf[96];
+          std::snprintf(buf, sizeof buf, " (reference's standard error %.3g)",
+                        norm > 0 ? std::sqrt(masked_sum_sq(se.values, nullptr, mask) / norm) : 0.0);
+          own = buf;
+        }
+        std::printf("%s %s: relative L2 difference %.3g over the occupied nodes%s\n", name.c_str(), grid.c_str(), d,
+                    own.c_str());
+      } else {
+        d = grid_difference(ref_grid, got_grid, fa, fb);
+        std::printf("%s %s: max relative difference %.3g\n", name.c_str(), grid.c_str(), d);
+      }
       keep_worst(worst, d);
       ++grids;
     }
@@ -120,6 +186,12 @@ Command add_compare_command(CLI::App& app, const GlobalOptions&) {
   cmd->add_option("other", args->other, "Output directory to compare against it")->required();
   cmd->add_option("--tolerance", args->tolerance, "Largest relative difference allowed (default 1e-5)")
       ->check(finite_range(0.0, 1e30));
+  cmd->add_option("--metric", args->metric,
+                  "max: the largest relative difference per value (bake against bake); l2: sqrt(sum (other - "
+                  "reference)^2 / sum reference^2) over the reference's occupied nodes (a bake against "
+                  "`lblight truth`, docs/truth.md)")
+      ->check(CLI::IsMember({"max", "l2"}))
+      ->capture_default_str();
   return {cmd, [args] { return run_compare(*args); }};
 }
 

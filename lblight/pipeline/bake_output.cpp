@@ -115,7 +115,8 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   // otherwise fall behind a GPU); inline, the OpenMP solver needs the cores back after each grid.
   const int parallel_grids = worker_.background() ? kBackgroundParallelGrids : 1;
   vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
-                                           static_cast<int>(1 + has_wood + mp.solutions.size()), file_meta,
+                                           static_cast<int>(1 + has_wood + mp.solutions.size() * grids_per_solution()),
+                                           file_meta,
                                            parallel_grids);
   worker_.post([this, &mp, has_wood] {
     const auto t0 = std::chrono::steady_clock::now();
@@ -137,6 +138,12 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
     throw Error(ErrorCategory::Internal, "bake output: more solutions than planned for model '" + mp.spec->name + "'");
   // The worker owns the totals from here; the manifest row keeps everything else.
   auto totals = std::make_shared<std::array<std::vector<float>, 3>>(std::move(result.totals));
+  std::shared_ptr<std::array<std::vector<float>, 3>> std_error;
+  if (grids_per_solution() == 2) {
+    if (result.std_error[0].empty())
+      throw Error(ErrorCategory::Internal, "bake output: a reference solution without its standard error");
+    std_error = std::make_shared<std::array<std::vector<float>, 3>>(std::move(result.std_error));
+  }
   done_.push_back(result);
   const SolutionResult& r = done_.back();
   const std::size_t slot = done_.size() - 1;
@@ -150,7 +157,7 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   g.metadata["lblight_error_estimate"] = r.error_estimate;
   g.metadata["lblight_converged"] = r.converged;
   LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
-  worker_.post([this, &mp, totals, g = std::move(g), lbh_in, slot]() mutable {
+  worker_.post([this, &mp, totals, std_error, g = std::move(g), lbh_in, slot]() mutable {
     const auto t0 = std::chrono::steady_clock::now();
     const LbhOutputSpec& lbh = plan_.scene->output.lbh;
     if (lbh.enabled) {
@@ -161,6 +168,11 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
     if (vdb_) {
       g.rgb = totals.get();
       vdb_->add(g);
+      if (std_error) {
+        g.name += "_se";
+        g.rgb = std_error.get();
+        vdb_->add(g);
+      }
     }
     output_seconds_ += since(t0);
   });
@@ -246,6 +258,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     s["grid"] = r.plan.grid_name;
     s["file"] = model["file"];
     s["iterations"] = r.iterations;
+    if (r.photons > 0) s["photons"] = r.photons;
     if (r.plan.derived) s["derived"] = "sum of B01..B18 (docs/model.md sec. 4); iterations: the largest of theirs";
     s["seconds"] = r.seconds;
     s["error_estimate"] = finite_or_null(r.error_estimate);
@@ -279,6 +292,7 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   m["backend"] = {{"name", info_.backend_name},
                   {"description", info_.backend_description},
                   {"precision", to_string(plan_.precision)}};
+  if (!info_.reference.is_null()) m["reference"] = info_.reference;
   m["models"] = models_;
   m["total_seconds"] = total_seconds;
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");

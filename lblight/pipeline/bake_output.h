@@ -1,5 +1,5 @@
 // Turns bake results into files: one <model>.vdb per model (float `density`, float `brown` when
-// the model has wood, Vec3f B00..B18 or `light`), <model>.lbh when asked, and manifest.json, all
+// the model has wood, Vec3f B00..B18 or `light`, and their `_se` for a reference), <model>.lbh when asked, and manifest.json, all
 // inside a staged directory that appears in place only when everything is written. Each solution
 // is converted, compressed and appended to the .vdb as it arrives (in arrival order), on a
 // background thread when the solver does not use the host's cores, so output overlaps the solve.
@@ -25,6 +25,9 @@ namespace lblight {
 struct BakeRunInfo {
   std::string command_line;
   std::string backend_name, backend_description;
+  // A Monte Carlo reference (lblight truth): its settings, recorded as the manifest's
+  // "reference"; each solution then also gets a grid <name>_se with its standard error.
+  nlohmann::json reference;
 };
 
 class BakeOutput {
@@ -46,6 +49,7 @@ class BakeOutput {
 
  private:
   void start_model(const ModelPlan& model);
+  int grids_per_solution() const { return info_.reference.is_null() ? 1 : 2; }
 
   const BakePlan& plan_;
   StagedDirectory dir_;

@@ -49,7 +49,7 @@ nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std:
     if (!cost.fits) throw Error(ErrorCategory::Unavailable, cost.why_not);
   }
   // On a GPU the host waits on the device: convert and write each solution while the next solves.
-  BakeOutput output(plan, target, {command_line, backend.name(), backend.description()},
+  BakeOutput output(plan, target, {command_line, backend.name(), backend.description(), {}},
                     /*write_in_background=*/!backend.occupies_host_cores());
   WriteEachSolution writer(output, observer);
   for (const ModelPlan& mp : plan.models) {

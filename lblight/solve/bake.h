@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "lblight/backend/backend.h"
@@ -23,6 +24,10 @@ struct SolutionResult {
   double krylov_residual = 0;  // its final relative residual
   std::vector<CheckPoint> history;                    // worst channel at every check
   std::array<std::vector<float>, 3> totals;           // R, G, B per lattice node
+  // The Monte Carlo reference only (lblight/reference): the totals' standard error per node, and
+  // the photons traced.
+  std::array<std::vector<float>, 3> std_error;
+  std::uint64_t photons = 0;
 };
 
 struct BakeProgress {

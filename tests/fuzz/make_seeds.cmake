@@ -2,6 +2,10 @@
 # bake's manifest.json and .vdb files (cmake -P, from the fuzz_seeds test).
 file(REMOVE_RECURSE ${SEEDS})
 file(MAKE_DIRECTORY ${SEEDS}/scene ${SEEDS}/obj ${SEEDS}/vdb_density ${SEEDS}/manifest ${SEEDS}/tmp)
+# Each fuzzer's working corpus (what it finds besides the seeds), empty at every run.
+foreach(target scene obj vdb_density manifest)
+  file(MAKE_DIRECTORY ${SEEDS}/${target}-work)
+endforeach()
 file(GLOB scenes ${SOURCE}/configs/*.json ${SOURCE}/configs/report/*.json ${SOURCE}/tests/scenes/*.json)
 file(COPY ${scenes} DESTINATION ${SEEDS}/scene)
 file(COPY ${SOURCE}/configs/meshes/teapot.obj DESTINATION ${SEEDS}/obj)
