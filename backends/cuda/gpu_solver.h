@@ -65,7 +65,7 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
       throw std::logic_error(std::string(backend) + " backend: batch capacity out of range");
     for (std::size_t c = 0; c < channels.size(); ++c) {
       for (int k = 0; k < g.material_count; ++k)
-        tables_.ops[c][k] = convert_op<float>(reduce_omega(channels[c].omega[k]));
+        tables_.ops[c][k] = convert_op<float>(channel_op(channels[c], k));
       unsigned bits = 0;
       for (int k = 0; k < kMaxMaterials; ++k)
         if (channels[c].absorbs[k]) bits |= 1u << k;

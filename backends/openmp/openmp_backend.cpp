@@ -128,7 +128,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     for (std::size_t i = 0; i < n_; ++i) wood_[i] = material_[i] == kMaterialWood ? 1.0f : 0.0f;
     for (const auto& ch : channels) {
       std::array<CollisionOp<Real>, kMaxMaterials> ops{};
-      for (int k = 0; k < material_count_; ++k) ops[k] = convert_op<Real>(reduce_omega(ch.omega[k]));
+      for (int k = 0; k < material_count_; ++k) ops[k] = convert_op<Real>(channel_op(ch, k));
       ops_.push_back(ops);
       unsigned bits = 0;
       for (int k = 0; k < kMaxMaterials; ++k)

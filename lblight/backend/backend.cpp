@@ -43,3 +43,12 @@ void check_geometry(const LatticeGeometry& g, const char* backend) {
 }
 
 }  // namespace lblight
+
+namespace lblight {
+
+CollisionOp<double> channel_op(const ChannelMaterials& channel, int material) {
+  const auto k = static_cast<std::size_t>(material);
+  return reduce_omega(channel.omega[k], channel.voxel_average[k]);
+}
+
+}  // namespace lblight

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lblight/core/precision.h"
+#include "lblight/lattice/collision_op.h"
 #include "lblight/lattice/dense_grid.h"
 #include "lblight/lattice/omega.h"
 
@@ -36,7 +37,12 @@ void check_geometry(const LatticeGeometry& g, const char* backend);
 struct ChannelMaterials {
   std::array<OmegaMatrix, kMaxMaterials> omega{};
   std::array<bool, kMaxMaterials> absorbs{};
+  // Stored totals are voxel averages (CollisionOp::total_gain; the calibrated model), not sums.
+  std::array<bool, kMaxMaterials> voxel_average{};
 };
+
+// The collision operator backends apply for material k of a channel.
+CollisionOp<double> channel_op(const ChannelMaterials& channel, int material);
 
 // One linear system: a base solution (or a static bake) in one colour channel.
 struct SystemSpec {

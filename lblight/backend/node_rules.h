@@ -62,9 +62,11 @@ struct NodeResidual {
 template <typename Real, typename OpReal>
 LBL_HOSTDEV LBL_FORCEINLINE NodeResidual node_residual(const CollisionOp<OpReal>& op, bool keeps_f0, float rho,
                                                        const Real (&f)[d3q19::kQ], Real previous, Real& total) {
-  Real t = 0;
+  // sum_m (1 + rho total_gain_m) f_m: the papers' sum_m f_m when the gains are 0 (x 1 exactly).
+  Real t = f[0];
   LBL_UNROLL
-  for (int m = 0; m < d3q19::kQ; ++m) t += f[m];
+  for (int m = 1; m < d3q19::kQ; ++m)
+    t += f[m] * (Real(1) + static_cast<Real>(rho) * static_cast<Real>(op.total_gain[(m - 1) / 2]));
   total = t;
   NodeResidual r;
   r.total = static_cast<double>(t);

@@ -3,6 +3,9 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -92,6 +95,30 @@ std::size_t rlimit_room(int resource, std::size_t used) {
 
 }  // namespace
 
+namespace {
+// LBLIGHT_MEMORY_LIMIT: a budget for this process (bytes, or with a K, M, G or T suffix, powers
+// of 1024), less what it holds already. 0 when unset.
+std::size_t configured_room() {
+  const char* text = std::getenv("LBLIGHT_MEMORY_LIMIT");
+  if (!text || !*text) return 0;
+  char* end = nullptr;
+  errno = 0;
+  double v = std::strtod(text, &end);
+  const std::string unit = end ? end : "";
+  const std::string units = "KMGT";
+  if (unit.size() == 1 && units.find(static_cast<char>(std::toupper(unit[0]))) != std::string::npos)
+    v *= std::pow(1024.0, 1.0 + static_cast<double>(units.find(static_cast<char>(std::toupper(unit[0])))));
+  else if (!unit.empty())
+    v = -1;
+  if (errno != 0 || !(v >= 1.0) || v > 1e18)
+    throw Error(ErrorCategory::InvalidInput, std::string("environment variable LBLIGHT_MEMORY_LIMIT='") + text +
+                                                 "' is not a memory size; allowed: bytes such as 4000000000 or 4G, "
+                                                 "512M (powers of 1024)");
+  const double held = 1024.0 * static_cast<double>(proc_kb("/proc/self/status", "VmRSS:"));
+  return v > held ? static_cast<std::size_t>(v - held) : std::size_t{1};
+}
+}  // namespace
+
 MemoryLimit host_memory_limit() {
   MemoryLimit m;
   const auto take = [&](std::size_t bytes, const char* source) {
@@ -104,6 +131,7 @@ MemoryLimit host_memory_limit() {
   take(rlimit_room(RLIMIT_AS, proc_kb("/proc/self/status", "VmSize:")), "the address-space limit (ulimit -v)");
   take(rlimit_room(RLIMIT_DATA, proc_kb("/proc/self/status", "VmData:")), "the data limit (ulimit -d)");
   take(cgroup_room(), "the cgroup memory limit");
+  take(configured_room(), "LBLIGHT_MEMORY_LIMIT");
   return m;
 }
 

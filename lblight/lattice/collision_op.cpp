@@ -16,7 +16,7 @@ void expect_equal(double a, double b, const char* what) {
 }
 }  // namespace
 
-CollisionOp<double> reduce_omega(const OmegaMatrix& om) {
+CollisionOp<double> reduce_omega(const OmegaMatrix& om, bool voxel_average) {
   CollisionOp<double> op{};
   op.diag0 = at(om, 0, 0);
   for (int m = 0; m < kPairs; ++m) {
@@ -34,6 +34,11 @@ CollisionOp<double> reduce_omega(const OmegaMatrix& om) {
       const double cross = 0.5 * (at(om, am, bk) + at(om, bm, ak));
       op.even[m * kPairs + k] = 0.5 * (same + cross);
       op.odd[m * kPairs + k] = 0.5 * (same - cross);
+    }
+    if (voxel_average) {  // column 0 sums to zero in every model: f_0 needs no gain
+      double sum = 0.0;
+      for (int i = 0; i < kQ; ++i) sum += at(om, i, am);
+      op.total_gain[m] = 0.5 * sum;
     }
   }
   return op;

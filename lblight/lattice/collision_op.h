@@ -21,10 +21,15 @@ struct CollisionOp {
   T col0[kPairs];           // Omega(a_m, 0)
   T row0[kPairs];           // Omega(0, a_k) (= Omega(0, b_k))
   T diag0;                  // Omega(0, 0)
+  // A node's stored total is sum_m (1 + rho total_gain_m) f_m: 0 for the papers' total sum_m f_m;
+  // half of Omega's column sums for the voxel average of the calibrated model (lb_model.h), the
+  // mean of the light entering a node and leaving it after the collision.
+  T total_gain[kPairs];     // per pair (a_m and b_m share their column sum)
 };
 
 // Throws std::invalid_argument if omega is not centrally symmetric (to 1e-12 relative).
-CollisionOp<double> reduce_omega(const OmegaMatrix& omega);
+// voxel_average: fill total_gain from the column sums (else 0).
+CollisionOp<double> reduce_omega(const OmegaMatrix& omega, bool voxel_average = false);
 
 template <typename T>
 CollisionOp<T> convert_op(const CollisionOp<double>& op) {
@@ -36,6 +41,7 @@ CollisionOp<T> convert_op(const CollisionOp<double>& op) {
   for (int i = 0; i < kPairs; ++i) {
     out.col0[i] = static_cast<T>(op.col0[i]);
     out.row0[i] = static_cast<T>(op.row0[i]);
+    out.total_gain[i] = static_cast<T>(op.total_gain[i]);
   }
   out.diag0 = static_cast<T>(op.diag0);
   return out;

@@ -218,6 +218,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["wood_nodes"] = mp.stats.wood;
   model["distinct_channels"] = mp.channels.size();
   model["savings"] = savings_json(mp);
+  model["lb_model"] = plan_.scene->solver.model.name();
   model["steps"] = {{"mode", to_string(mp.steps.mode)},
                     {"method", to_string(mp.steps.method)},
                     {"tolerance", mp.steps.tolerance},

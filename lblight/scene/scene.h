@@ -12,6 +12,7 @@
 #include "lblight/compress/lbh_settings.h"
 #include "lblight/core/error.h"
 #include "lblight/core/precision.h"
+#include "lblight/lattice/lb_model.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/scene/material.h"
@@ -92,6 +93,7 @@ struct SolverSpec {
   int max_iterations = 0;      // Auto: cap; 0 = 100 x longest lattice edge
   int check_interval = 0;      // steps between convergence checks; 0 = automatic
   Precision precision = Precision::Float32;
+  LbModel model;               // "model": "paper" (default) or "calibrated", with "calibration"
 };
 
 // "output": {"lbh": {"threshold": 0.01, "relative": true}} asks bake for <model>.lbh next to

@@ -339,7 +339,8 @@ LightingSpec read_lighting(const JsonReader& r) {
 }
 
 SolverSpec read_solver(const JsonReader& r) {
-  r.only_keys({"iterations", "tolerance", "max_iterations", "check_interval", "precision", "method"});
+  r.only_keys({"iterations", "tolerance", "max_iterations", "check_interval", "precision", "method", "model",
+               "calibration"});
   SolverSpec s;
   if (r.has("iterations")) {
     const JsonReader it = r.child("iterations");
@@ -372,6 +373,16 @@ SolverSpec read_solver(const JsonReader& r) {
   else if (prec == "float64") s.precision = Precision::Float64;
   else if (prec == "float16") s.precision = Precision::Float16;
   else r.fail("unknown precision '" + prec + "'; allowed: float32, float64, float16", "precision");
+  const std::string model = r.string_or("model", "paper");
+  if (model == "calibrated") s.model.calibrated = true;
+  else if (model != "paper") r.fail("unknown LB model '" + model + "'; allowed: paper, calibrated", "model");
+  if (r.has("calibration")) {
+    if (!s.model.calibrated) r.fail("calibration applies to \"model\": \"calibrated\"", "calibration");
+    const JsonReader c = r.child("calibration");
+    c.only_keys({"path_length", "phase_moment", "delta_m", "isotropic_ambient", "remove_absorbed", "voxel_average"});  // kCalibrationNames
+    for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k)
+      *calibration_switch(s.model, k) = c.boolean_or(kCalibrationNames[k], true);
+  }
   return s;
 }
 

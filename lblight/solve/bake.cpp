@@ -153,8 +153,9 @@ struct SystemRef {
 };
 
 // B_0 assembled from the directional solutions as they finish (docs/model.md sec. 4). Interior nodes:
-// the sum; boundary nodes: B_0's own fixed total, 19 (the sum of its boundary values, where the
-// directional ones give 1 each). Error bound: ||sum e_j|| <= sum eps_j ||B_j||, over ||B_0||.
+// sum_j b_j B_j with b the boundary of B_0 (1 each in the papers' model, 18 w_j for isotropic
+// ambient light); boundary nodes: B_0's own fixed total, the sum of its boundary values (19 in the
+// papers' model). Error bound: ||sum b_j e_j|| <= sum b_j eps_j ||B_j||, over ||B_0||.
 class AmbientSum {
  public:
   AmbientSum(const ModelPlan& mp) : mp_(mp) {
@@ -169,16 +170,17 @@ class AmbientSum {
     if (!plan_ || r.plan.index < 1) return;
     const auto t0 = Clock::now();
     double norm_sq = 0, peak = 0;
+    const double b = plan_->boundary[static_cast<std::size_t>(r.plan.index)];
     for (int c = 0; c < kChannels; ++c) {
       const std::vector<float>& t = r.totals[c];
       for (std::size_t i = 0; i < t.size(); ++i) {
-        sum_[c][i] += t[i];
+        sum_[c][i] += b * t[i];
         norm_sq += static_cast<double>(t[i]) * t[i];
         peak = std::max(peak, static_cast<double>(t[i]));
       }
     }
-    bound_ += r.error_estimate * std::sqrt(norm_sq);
-    bound_max_ += r.error_estimate_max * peak;
+    bound_ += b * r.error_estimate * std::sqrt(norm_sq);
+    bound_max_ += b * r.error_estimate_max * peak;
     iterations_ = std::max(iterations_, r.iterations);
     converged_ = converged_ && r.converged;
     ++count_;
@@ -193,6 +195,8 @@ class AmbientSum {
     SolutionResult r;
     r.plan = *plan_;
     const Dims& d = mp_.lattice.dims;
+    double boundary_total = 0;
+    for (double b : plan_->boundary) boundary_total += b;
     double norm_sq = 0, max_value = 0;
     for (int c = 0; c < kChannels; ++c) {
       r.totals[c].resize(d.count());
@@ -200,7 +204,7 @@ class AmbientSum {
         for (int y = 0; y < d.ny; ++y)
           for (int x = 0; x < d.nx; ++x) {
             const std::size_t i = d.index(x, y, z);
-            const double v = d.is_boundary(x, y, z) ? 19.0 : sum_[c][i];
+            const double v = d.is_boundary(x, y, z) ? boundary_total : sum_[c][i];
             r.totals[c][i] = static_cast<float>(v);
             norm_sq += v * v;
             max_value = std::max(max_value, v);

@@ -123,7 +123,8 @@ double estimate_steps(const ModelPlan& mp, double tol) {
 
 bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int count) {
   for (int k = 0; k < count; ++k)
-    if (a.omega[k] != b.omega[k] || a.absorbs[k] != b.absorbs[k]) return false;
+    if (a.omega[k] != b.omega[k] || a.absorbs[k] != b.absorbs[k] || a.voxel_average[k] != b.voxel_average[k])
+      return false;
   return true;
 }
 
@@ -160,14 +161,15 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, const RunContext& ctx, std:
 }
 
 // One system per distinct channel: a grey material solves once and fills R, G and B.
-void plan_channels(ModelPlan& mp) {
+void plan_channels(ModelPlan& mp, const LbModel& model) {
   const ModelSpec& spec = *mp.spec;
   for (int c = 0; c < kChannels; ++c) {
     ChannelMaterials ch;
-    ch.omega[kMaterialMedium] = build_omega(spec.material.channel[c]);
-    ch.absorbs[kMaterialMedium] = spec.material.absorbs;
-    ch.omega[kMaterialWood] = build_omega(spec.wood_material.channel[c]);
-    ch.absorbs[kMaterialWood] = spec.wood_material.absorbs;
+    ch.omega[kMaterialMedium] = build_model_omega(spec.material.channel[c], model);
+    ch.absorbs[kMaterialMedium] = model_absorbs(spec.material.absorbs, model);
+    ch.omega[kMaterialWood] = build_model_omega(spec.wood_material.channel[c], model);
+    ch.absorbs[kMaterialWood] = model_absorbs(spec.wood_material.absorbs, model);
+    ch.voxel_average.fill(model.calibrated && model.voxel_average);
     int found = -1;
     for (std::size_t u = 0; u < mp.channels.size(); ++u)
       if (same_channel(mp.channels[u], ch, mp.lattice.material_count)) found = static_cast<int>(u);
@@ -190,8 +192,9 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
     s.index = -1;
     s.grid_name = "light";
     const Vec3d& t = scene.lighting.toward_sun;
-    s.boundary =
-        static_boundary(decompose_direction({-t.x, -t.y, -t.z}), scene.lighting.intensity, scene.lighting.ambient);
+    s.boundary = static_boundary(decompose_direction({-t.x, -t.y, -t.z}), scene.lighting.intensity, 0.0);
+    const std::array<double, 19> ambient = ambient_boundary(scene.solver.model);
+    for (int i = 0; i < 19; ++i) s.boundary[i] += scene.lighting.ambient * ambient[i];
     mp.solutions.push_back(s);
     return;
   }
@@ -207,7 +210,7 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
     s.index = idx;
     s.grid_name = base_grid_name(idx);
     s.direction = {d3q19::cx(idx), d3q19::cy(idx), d3q19::cz(idx)};
-    s.boundary = base_boundary(idx);
+    s.boundary = idx == 0 ? ambient_boundary(scene.solver.model) : base_boundary(idx);
     // docs/model.md sec. 4: with an empty boundary layer (margin >= 1 guarantees it) the interior
     // of B_0 is the sum of the directional solutions, so it need not be solved.
     s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && mp.spec->margin >= 1;
@@ -267,7 +270,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
     ModelPlan mp;
     mp.spec = &spec;
     plan_lattice(mp, scene, ctx, plan.warnings);
-    plan_channels(mp);
+    plan_channels(mp, scene.solver.model);
     plan_solutions(mp, scene, ov);
     plan_steps(mp, scene, ov, plan.precision);
     plan.models.push_back(std::move(mp));

@@ -89,6 +89,19 @@ TEST_CASE("Every bad field is named by its JSON path", "[scene]") {
         "/solver/iterations");
   CHECK(error_path(std::string(kMinimal).insert(1, R"("lighting": {"mode": "base", "solutions": "0,19"},)")) ==
         "/lighting/solutions");
+  CHECK(error_path(std::string(kMinimal).insert(1, R"("solver": {"model": "exact"},)")) == "/solver/model");
+  CHECK(error_path(std::string(kMinimal).insert(1, R"("solver": {"calibration": {"delta_m": false}},)")) ==
+        "/solver/calibration");
+  CHECK(error_path(std::string(kMinimal).insert(
+            1, R"("solver": {"model": "calibrated", "calibration": {"delta": false}},)")) == "/solver/calibration/delta");
+  CHECK(error_path(std::string(kMinimal).insert(
+            1, R"("solver": {"model": "calibrated", "calibration": {"delta_m": 0}},)")) == "/solver/calibration/delta_m");
+  const Scene s = parse_scene(std::string(kMinimal).insert(
+                                  1, R"("solver": {"model": "calibrated", "calibration": {"delta_m": false}},)"),
+                              "s.json");
+  CHECK(s.solver.model.calibrated);
+  CHECK_FALSE(s.solver.model.delta_m);
+  CHECK(s.solver.model.path_length);
 }
 
 TEST_CASE("Error messages name the value and what is allowed", "[scene]") {

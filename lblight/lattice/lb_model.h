@@ -1,0 +1,47 @@
+// Which LB model a bake solves (docs/model.md sec. 8): the papers' update ([Geist2010] eqs. 5-9,
+// bit for bit), or the same update with its collision matrix and boundary values calibrated
+// against physical light (docs/truth.md measures both). Every correction lives in the
+// per-material Omega and the boundary values, so the kernel and its cost are the same.
+#pragma once
+
+#include <array>
+#include <string>
+
+#include "lblight/lattice/omega.h"
+
+namespace lblight {
+
+struct LbModel {
+  bool calibrated = false;  // false: the papers' model; the switches below then do nothing
+  // Each correction of the calibrated model, separately switchable (all on by default):
+  bool path_length = true;        // direction j loses 1 - exp(-sigma_t |c_j|) per step, not sigma_t
+  bool phase_moment = true;       // the discrete phase function's mean cosine equals g
+  bool delta_m = true;            // g > 0: the forward peak g^2 of sigma_s passes unscattered
+  bool isotropic_ambient = true;  // B00's boundary is isotropic light: f_i = 18 w_i
+  bool remove_absorbed = true;    // absorbed light leaves (f_0 stays 0, the total is the moving part)
+  bool voxel_average = true;      // the stored total is the voxel's mean (entering and leaving light)
+
+  std::string name() const;  // "paper", "calibrated" or "calibrated (no path_length, ...)"
+};
+
+// The names of the corrections, in the order above ("path_length", ...).
+inline constexpr std::array<const char*, 6> kCalibrationNames{"path_length",       "phase_moment",
+                                                              "delta_m",           "isotropic_ambient",
+                                                              "remove_absorbed",   "voxel_average"};
+bool* calibration_switch(LbModel& model, int k);  // the switch kCalibrationNames[k]
+
+// Omega of one material and channel under `model` (build_omega for the papers' model).
+OmegaMatrix build_model_omega(const OpticalParams& params, const LbModel& model);
+
+// Whether nodes of a material with the given absorb flag dump f_0 under `model`.
+bool model_absorbs(bool material_absorbs, const LbModel& model);
+
+// B00's boundary values under `model`: 1 for every i (papers), or 18 w_i, f_0 = 0 (isotropic).
+std::array<double, 19> ambient_boundary(const LbModel& model);
+
+// Mean cosine sum_i w_i pn_ij(g) n_i . n_j of the discrete phase function for incoming direction j,
+// and the g whose discrete phase has mean cosine `target` (axial and diagonal j differ).
+double discrete_mean_cosine(double g, int j);
+double moment_matched_g(double target, int j);
+
+}  // namespace lblight
