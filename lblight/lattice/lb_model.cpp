@@ -1,6 +1,8 @@
 #include "lblight/lattice/lb_model.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace lblight {
 
@@ -16,8 +18,8 @@ std::string LbModel::name() const {
 }
 
 bool* calibration_switch(LbModel& m, int k) {
-  bool* s[] = {&m.path_length,       &m.phase_moment,    &m.delta_m,
-               &m.isotropic_ambient, &m.remove_absorbed, &m.voxel_average};
+  bool* s[] = {&m.path_length,     &m.phase_moment,  &m.delta_m,      &m.isotropic_ambient,
+               &m.remove_absorbed, &m.voxel_average, &m.diffusion_match};
   return s[k];
 }
 
@@ -46,21 +48,16 @@ double moment_matched_g(double target, int j) {
   return 0.5 * (lo + hi);
 }
 
-OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
-  if (!model.calibrated) return build_omega(p);
-  // Delta-M: for a forward peak, the fraction f = g^2 of scattering is taken as no scattering at
-  // all, leaving sigma_s (1 - f) with asymmetry (g - f) / (1 - f); sigma_s (1 - g) is kept.
-  double sigma_s = p.sigma_s, g = p.g;
-  if (model.delta_m && g > 0.0 && g < 1.0) {
-    const double f = g * g;
-    sigma_s *= 1.0 - f;
-    g = (g - f) / (1.0 - f);
-  }
-  const double sigma_t = p.sigma_a + sigma_s;
+namespace {
+
+// Omega of the calibrated model for (delta-M scaled) sigma_a, sigma_s and a phase function whose
+// discrete mean cosine is `mean_cosine` (phase_moment; else HG's g = mean_cosine as printed).
+OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const LbModel& model,
+                     std::array<double, kQ>& removed) {
+  const double sigma_t = sigma_a + sigma_s;
   const double albedo = sigma_t > 0 ? sigma_s / sigma_t : 0.0;
   // What direction k loses per step at density 1: over its path length |c_k| (path_length) or
   // sigma_t as in the papers.
-  std::array<double, kQ> removed{};
   for (int k = 1; k < kQ; ++k) {
     const double len = model.path_length ? std::sqrt(static_cast<double>(length_sq(k))) : 1.0;
     removed[k] = model.path_length ? -std::expm1(-sigma_t * len) : sigma_t;
@@ -69,7 +66,7 @@ OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
   om[0] = -1.0;
   for (int j = 1; j < kQ; ++j) {
     om[j] = model.remove_absorbed ? 0.0 : removed[j] * (1.0 - albedo);
-    const double gj = model.phase_moment ? moment_matched_g(g, j) : g;
+    const double gj = model.phase_moment || model.diffusion_match ? moment_matched_g(mean_cosine, j) : mean_cosine;
     double z = 0;  // Z_j of [Geist2010] eq. (8)
     for (int k = 1; k < kQ; ++k) z += weight(k) * hg_phase(gj, k, j);
     for (int i = 1; i < kQ; ++i) {
@@ -83,6 +80,68 @@ OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
   }
   for (int i = 1; i < kQ; ++i) om[i * kQ] = weight(i);
   return om;
+}
+
+}  // namespace
+
+double lattice_diffusion(const OmegaMatrix& om, const std::array<double, kQ>& removed) {
+  // Equilibrium of the moving directions: each holds w_i / r_i (light that leaves a direction
+  // more slowly piles up in it), normalised to unit total.
+  std::array<double, kQ> e{};
+  double sum = 0;
+  for (int i = 1; i < kQ; ++i) sum += e[i] = removed[i] > 0 ? weight(i) / removed[i] : 0.0;
+  if (!(sum > 0)) return std::numeric_limits<double>::infinity();
+  for (double& v : e) v /= sum;
+  // Chapman-Enskog: D = sum_i c_ix y_i - 1/2 sum_i c_ix^2 e_i with (-Omega) y = c_x e. y is odd
+  // (y_b = -y_a over antipodal pairs a, b), where Omega acts as the 9x9 block of a_m rows and
+  // columns minus b_m columns: nonsingular even without absorption.
+  constexpr int n = kQ / 2;
+  double a[n][n + 1];
+  for (int m = 0; m < n; ++m) {
+    const int am = 2 * m + 1;
+    for (int k = 0; k < n; ++k) a[m][k] = -(om[am * kQ + 2 * k + 1] - om[am * kQ + 2 * k + 2]);
+    a[m][n] = cx(am) * e[am];
+  }
+  for (int c = 0; c < n; ++c) {  // Gaussian elimination with partial pivoting
+    int piv = c;
+    for (int r = c + 1; r < n; ++r)
+      if (std::abs(a[r][c]) > std::abs(a[piv][c])) piv = r;
+    for (int k = 0; k <= n; ++k) std::swap(a[c][k], a[piv][k]);
+    if (a[c][c] == 0.0) return std::numeric_limits<double>::infinity();
+    for (int r = 0; r < n; ++r)
+      if (r != c) {
+        const double f = a[r][c] / a[c][c];
+        for (int k = c; k <= n; ++k) a[r][k] -= f * a[c][k];
+      }
+  }
+  double d = 0;
+  for (int m = 0; m < n; ++m) d += 2.0 * cx(2 * m + 1) * a[m][n] / a[m][m];
+  for (int i = 1; i < kQ; ++i) d -= 0.5 * cx(i) * cx(i) * e[i];
+  return d;
+}
+
+OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
+  if (!model.calibrated) return build_omega(p);
+  // Delta-M: for a forward peak, the fraction f = g^2 of scattering is taken as no scattering at
+  // all, leaving sigma_s (1 - f) with asymmetry (g - f) / (1 - f); sigma_s (1 - g) is kept.
+  double sigma_s = p.sigma_s, g = p.g;
+  if (model.delta_m && g > 0.0 && g < 1.0) {
+    const double f = g * g;
+    sigma_s *= 1.0 - f;
+    g = (g - f) / (1.0 - f);
+  }
+  std::array<double, kQ> removed{};
+  if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0) return assemble(p.sigma_a, sigma_s, g, model, removed);
+  // diffusion_match: the phase function's mean cosine that gives multiply scattered light the
+  // physical diffusion coefficient 1 / (3 (sigma_a + sigma_s (1 - g))); the lattice's own
+  // coefficient rises with the mean cosine (bisection, clamped to [-0.95, 0.95]).
+  const double target = 1.0 / (3.0 * (p.sigma_a + sigma_s * (1.0 - g)));
+  double lo = -0.95, hi = 0.95;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (lattice_diffusion(assemble(p.sigma_a, sigma_s, mid, model, removed), removed) < target ? lo : hi) = mid;
+  }
+  return assemble(p.sigma_a, sigma_s, 0.5 * (lo + hi), model, removed);
 }
 
 bool model_absorbs(bool material_absorbs, const LbModel& model) {

@@ -15,19 +15,21 @@ struct LbModel {
   bool calibrated = false;  // false: the papers' model; the switches below then do nothing
   // Each correction of the calibrated model, separately switchable (all on by default):
   bool path_length = true;        // direction j loses 1 - exp(-sigma_t |c_j|) per step, not sigma_t
-  bool phase_moment = true;       // the discrete phase function's mean cosine equals g
+  bool phase_moment = true;       // the discrete phase function's mean cosine equals g (unless diffusion_match)
   bool delta_m = true;            // g > 0: the forward peak g^2 of sigma_s passes unscattered
   bool isotropic_ambient = true;  // B00's boundary is isotropic light: f_i = 18 w_i
   bool remove_absorbed = true;    // absorbed light leaves (f_0 stays 0, the total is the moving part)
   bool voxel_average = true;      // the stored total is the voxel's mean (entering and leaving light)
+  // The discrete phase function's mean cosine chosen so that the lattice's diffusion coefficient
+  // is the physical 1 / (3 sigma_tr) (replaces phase_moment's target g).
+  bool diffusion_match = true;
 
   std::string name() const;  // "paper", "calibrated" or "calibrated (no path_length, ...)"
 };
 
 // The names of the corrections, in the order above ("path_length", ...).
-inline constexpr std::array<const char*, 6> kCalibrationNames{"path_length",       "phase_moment",
-                                                              "delta_m",           "isotropic_ambient",
-                                                              "remove_absorbed",   "voxel_average"};
+inline constexpr std::array<const char*, 7> kCalibrationNames{
+    "path_length", "phase_moment", "delta_m", "isotropic_ambient", "remove_absorbed", "voxel_average", "diffusion_match"};
 bool* calibration_switch(LbModel& model, int k);  // the switch kCalibrationNames[k]
 
 // Omega of one material and channel under `model` (build_omega for the papers' model).
@@ -43,5 +45,10 @@ std::array<double, 19> ambient_boundary(const LbModel& model);
 // and the g whose discrete phase has mean cosine `target` (axial and diagonal j differ).
 double discrete_mean_cosine(double g, int j);
 double moment_matched_g(double target, int j);
+
+// The diffusion coefficient per lattice step of multiply scattered light under `omega`
+// (Chapman-Enskog; removed[k]: what direction k loses per step, which sets the equilibrium
+// w_k / removed[k]). The papers' isotropic model gives (1 / sigma_t - 1 / 2) / 2, [Geist2010] eq. (4).
+double lattice_diffusion(const OmegaMatrix& omega, const std::array<double, d3q19::kQ>& removed);
 
 }  // namespace lblight

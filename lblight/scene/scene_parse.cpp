@@ -379,9 +379,10 @@ SolverSpec read_solver(const JsonReader& r) {
   if (r.has("calibration")) {
     if (!s.model.calibrated) r.fail("calibration applies to \"model\": \"calibrated\"", "calibration");
     const JsonReader c = r.child("calibration");
-    c.only_keys({"path_length", "phase_moment", "delta_m", "isotropic_ambient", "remove_absorbed", "voxel_average"});  // kCalibrationNames
+    c.only_keys({"path_length", "phase_moment", "delta_m", "isotropic_ambient", "remove_absorbed", "voxel_average",
+                 "diffusion_match"});  // kCalibrationNames
     for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k)
-      *calibration_switch(s.model, k) = c.boolean_or(kCalibrationNames[k], true);
+      *calibration_switch(s.model, k) = c.boolean_or(kCalibrationNames[k], *calibration_switch(s.model, k));
   }
   return s;
 }

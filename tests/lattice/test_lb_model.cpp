@@ -33,7 +33,8 @@ TEST_CASE("The papers' model builds the papers' Omega, whatever the switches say
   CHECK(ambient_boundary(paper)[0] == 1.0);
   CHECK(paper.name() == "paper");
   CHECK(calibrated().name() == "calibrated");
-  CHECK(only("delta_m").name() == "calibrated (no path_length, phase_moment, isotropic_ambient, remove_absorbed, voxel_average)");
+  CHECK(only("delta_m").name() ==
+        "calibrated (no path_length, phase_moment, isotropic_ambient, remove_absorbed, voxel_average, diffusion_match)");
 }
 
 TEST_CASE("Calibrated with every correction off is the papers' Omega") {
@@ -125,4 +126,28 @@ TEST_CASE("isotropic_ambient: B00's boundary is 18 w_i, as much light in every d
     if (cz(i) > 0) flux += f[static_cast<std::size_t>(i)], paper += 1.0;
   CHECK(flux == Approx(4.5));
   CHECK(paper == 5.0);
+}
+
+TEST_CASE("The lattice's diffusion coefficient: the papers' eq. (4), and the physical one under diffusion_match") {
+  std::array<double, kQ> removed{};
+  for (double st : {0.1, 0.8, 1.5}) {
+    removed.fill(st);
+    CHECK(lattice_diffusion(build_omega({0.0, st, 0.0}), removed) == Approx((1.0 / st - 0.5) / 2.0).epsilon(1e-12));
+  }
+  // diffusion_match: the lattice's coefficient is 1 / (3 (sigma_a + sigma_s (1 - g))), for thin and
+  // dense media, forward and isotropic scattering.
+  for (const OpticalParams p : {OpticalParams{0.008, 0.792, 0.0}, OpticalParams{0.3, 0.3, 0.0},
+                                OpticalParams{0.01, 0.09, 0.5}, OpticalParams{0.008, 0.792, 0.9}}) {
+    CAPTURE(p.sigma_a, p.sigma_s, p.g);
+    double ss = p.sigma_s;
+    if (p.g > 0) ss *= 1 - p.g * p.g;  // delta_m
+    const double st = p.sigma_a + ss;
+    for (int k = 1; k < kQ; ++k) removed[static_cast<std::size_t>(k)] = 1 - std::exp(-st * std::sqrt(double(length_sq(k))));
+    const double physical = 1.0 / (3.0 * (p.sigma_a + p.sigma_s * (1 - p.g)));
+    CHECK(lattice_diffusion(build_model_omega(p, calibrated()), removed) == Approx(physical).epsilon(1e-6));
+    // without it (mean cosine g) the lattice diffuses differently
+    LbModel moment = calibrated();
+    moment.diffusion_match = false;
+    CHECK(std::abs(lattice_diffusion(build_model_omega(p, moment), removed) / physical - 1) > 0.05);
+  }
 }

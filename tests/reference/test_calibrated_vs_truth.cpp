@@ -13,15 +13,6 @@ using namespace lblight::test;
 
 namespace {
 
-class Keep : public BakeObserver {
- public:
-  explicit Keep(std::map<int, SolutionResult>& out) : out_(out) {}
-  void solution_done(const ModelPlan&, SolutionResult& r) override { out_[r.plan.index] = std::move(r); }
-
- private:
-  std::map<int, SolutionResult>& out_;
-};
-
 std::string cube_scene(const std::string& model) {
   return R"({"version": 1, "models": [{"name": "cube", "density": {"type": "procedural", "shape": "box",
              "resolution": 12, "size": 12.0}, "material": {"sigma_a": 0.008, "sigma_s": 0.792, "g": 0.0,
@@ -49,7 +40,7 @@ TEST_CASE("Against the Monte Carlo reference, the calibrated LB beats the papers
   const BakePlan pp = make_plan(paper), cp = make_plan(calibrated);
   std::map<int, SolutionResult> lb_paper, lb_cal;
   auto backend = cpu_backend(0);
-  Keep kp(lb_paper), kc(lb_cal);
+  KeepSolutions kp(lb_paper), kc(lb_cal);
   bake_model(pp.models[0], *backend, {}, kp);
   bake_model(cp.models[0], *backend, {}, kc);
 

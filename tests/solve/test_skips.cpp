@@ -55,15 +55,6 @@ struct BakeResult {
   std::map<int, SolutionResult> solutions;
 };
 
-class Keep : public BakeObserver {
- public:
-  explicit Keep(std::map<int, SolutionResult>& out) : out_(out) {}
-  void solution_done(const ModelPlan&, SolutionResult& r) override { out_[r.plan.index] = std::move(r); }
-
- private:
-  std::map<int, SolutionResult>& out_;
-};
-
 // Scenes must outlive their plans (plans point into them).
 BakeResult bake(const Scene& scene, Precision precision = Precision::Float32) {
   BakeResult r;
@@ -71,7 +62,7 @@ BakeResult bake(const Scene& scene, Precision precision = Precision::Float32) {
   ov.precision = precision;
   r.plan = make_plan(scene, ov);
   auto backend = cpu_backend(0);
-  Keep keep(r.solutions);
+  KeepSolutions keep(r.solutions);
   bake_model(r.plan.models.at(0), *backend, {}, keep);
   return r;
 }

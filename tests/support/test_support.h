@@ -4,6 +4,7 @@
 
 #include <array>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -62,6 +63,16 @@ const std::vector<ChannelMaterials>& leaf_channels();
 std::vector<double> solve_totals_f64(const Backend& backend, const LatticeGeometry& g,
                                      const std::vector<ChannelMaterials>& ch, const SystemSpec& sys, int steps);
 // max_relative_difference(ref, got, floor), keep_worst(worst, v): lblight/core/relative_gap.h.
+
+// Keeps every solution a bake hands over, by base solution index (-1: a static bake).
+class KeepSolutions final : public BakeObserver {
+ public:
+  explicit KeepSolutions(std::map<int, SolutionResult>& out) : out_(out) {}
+  void solution_done(const ModelPlan&, SolutionResult& r) override { out_[r.plan.index] = std::move(r); }
+
+ private:
+  std::map<int, SolutionResult>& out_;
+};
 
 class TempDir {
  public:
