@@ -12,6 +12,7 @@
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
+#include "lblight/core/isolated_call.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/run_bake.h"
 
@@ -100,7 +101,10 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   // failure to start is reported once the plan is made.
   std::future<std::unique_ptr<Backend>> starting;
   if (args.solve.backend != "cpu")
-    starting = std::async(std::launch::async, [&args] { return args.solve.make_backend(); });
+    starting = std::async(std::launch::async, [&args] {
+      const auto guard = hold_forks();  // the driver loads libraries: no .vdb probe forks meanwhile
+      return args.solve.make_backend();
+    });
   const BakePlan plan = make_plan(scene, ov, args.solve.run_context());
   auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
   if (!backend->supports(plan.precision))

@@ -180,7 +180,9 @@ Command add_compare_command(CLI::App& app, const GlobalOptions&) {
   CLI::App* cmd = app.add_subcommand(
       "compare",
       "Compare the light grids of two bakes of the same scene (every model and solution of the reference): per grid "
-      "the largest relative difference, with values below 1e-6 of the grid's largest compared against that floor. "
+      "the largest relative difference, with values below 1e-6 of the grid's largest compared against that floor "
+      "(--metric max), or the relative L2 difference over the occupied nodes (--metric l2: a bake against "
+      "`lblight truth`). "
       "Exit 0 when every grid is within --tolerance, 1 when one is not, 2 when the outputs do not match up.");
   cmd->add_option("reference", args->reference, "Reference output directory (with manifest.json)")->required();
   cmd->add_option("other", args->other, "Output directory to compare against it")->required();

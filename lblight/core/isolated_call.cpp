@@ -43,14 +43,23 @@ constexpr bool kAddressSanitizer = false;
 constexpr bool kAddressSanitizer = false;
 #endif
 
+std::mutex& fork_mutex() {
+  static std::mutex m;
+  return m;
+}
+
 }  // namespace
+
+std::unique_lock<std::mutex> hold_forks() { return std::unique_lock<std::mutex>(fork_mutex()); }
 
 IsolatedOutcome run_isolated(const std::function<void()>& work, double timeout_seconds, const RunContext& ctx,
                              std::size_t memory_bytes) {
   const std::size_t inherited = own_address_space_bytes();
   int fds[2];
   if (::pipe2(fds, O_CLOEXEC) != 0) throw_io(std::string("cannot create a pipe: ") + std::strerror(errno));
+  std::unique_lock<std::mutex> no_loading(fork_mutex());
   const pid_t pid = ::fork();
+  if (pid > 0) no_loading.unlock();
   if (pid < 0) {
     ::close(fds[0]);
     ::close(fds[1]);

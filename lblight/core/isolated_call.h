@@ -5,6 +5,7 @@
 #pragma once
 
 #include <functional>
+#include <mutex>
 #include <string>
 
 #include "lblight/core/run_context.h"
@@ -23,5 +24,10 @@ struct IsolatedOutcome {
 // allocation past it fails in the child, never the machine's memory).
 IsolatedOutcome run_isolated(const std::function<void()>& work, double timeout_seconds, const RunContext& ctx = {},
                              std::size_t memory_bytes = 0);
+
+// Held while this process may be loading shared libraries on another thread (starting a GPU
+// driver): a fork then would copy the loader mid-change, and the child aborts inside ld.so (seen
+// as "Inconsistency detected by ld.so" under ASan). run_isolated forks only while holding it.
+std::unique_lock<std::mutex> hold_forks();
 
 }  // namespace lblight

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <mutex>
 #include <set>
+#include <tuple>
 #include <utility>
 
 // lblight's dense arrays have x fastest: OpenVDB calls that LayoutXYZ (offset i + j*mY + k*mZ),
@@ -93,6 +94,55 @@ std::array<double, 16> from_vdb_transform(const openvdb::math::Transform& t, con
   return m;
 }
 
+// Walks the length-prefixed fields OpenVDB is about to read at `is` without reading them, and
+// refuses a length that runs past the end of the file: OpenVDB allocates each field's claimed
+// size before reading it, gigabytes for one damaged length. `strings`: uint32-length strings;
+// `meta`: a MetaMap (int32 count, then name, type and a uint32-sized value per entry).
+void check_lengths(std::istream& is, std::int64_t file_size, int strings, bool meta, const Location& where) {
+  const std::streampos start = is.tellg();
+  // Reads a length and returns it (the field skipped), or with `keep`, the field itself.
+  auto take = [&](const char* what, std::string* keep = nullptr) {
+    std::uint32_t n = 0;
+    is.read(reinterpret_cast<char*>(&n), sizeof n);
+    const std::int64_t at = static_cast<std::int64_t>(is.tellg());
+    if (!is || at < 0 || static_cast<std::int64_t>(n) > file_size - at)
+      throw_invalid(std::string("not a readable OpenVDB file (truncated or corrupt?): a ") + what + " of " +
+                        std::to_string(n) + " bytes runs past the end of the file",
+                    where);
+    if (keep) {
+      keep->assign(n, '\0');
+      is.read(keep->data(), static_cast<std::streamsize>(n));
+    } else {
+      is.seekg(static_cast<std::streamoff>(n), std::ios::cur);
+    }
+    return n;
+  };
+  if (meta) {
+    std::int32_t count = 0;
+    is.read(reinterpret_cast<char*>(&count), sizeof count);
+    if (!is || count < 0 || count > file_size)
+      throw_invalid("not a readable OpenVDB file: it claims " + std::to_string(count) + " metadata entries", where);
+    for (std::int32_t i = 0; i < count; ++i) {
+      std::string name, type;
+      take("metadata name", &name);
+      take("metadata type", &type);
+      const std::uint32_t bytes = take("metadata value");
+      // A value of a fixed-size type is read at its type's size whatever the file says: a
+      // mismatch would leave OpenVDB reading the rest of the file from the wrong offset.
+      if (type != "string" && openvdb::Metadata::isRegisteredType(type)) {
+        const openvdb::Index32 expected = openvdb::Metadata::createMetadata(type)->size();
+        if (bytes != expected)
+          throw_invalid("not a readable OpenVDB file (corrupt?): metadata '" + name + "' of type " + type + " has " +
+                            std::to_string(bytes) + " bytes where its type has " + std::to_string(expected),
+                        where);
+      }
+    }
+  }
+  for (int i = 0; i < strings; ++i) take("grid name or type");
+  is.clear();
+  is.seekg(start);
+}
+
 // Reads a .vdb's header and grid descriptors (as io::File::open does) and checks that every grid
 // ends inside the file. OpenVDB itself lists a truncated file's grids as if whole, and reading
 // one can take gigabytes from the garbage sizes at the cut. Archive's header reader is protected:
@@ -117,12 +167,14 @@ class CompletenessCheck : public openvdb::io::Archive {
       setDataCompression(is);
       if (!is) throw_invalid("not a readable OpenVDB file: the header is cut short", where);
       if (!inputHasGridOffsets()) return;  // very old files: nothing to check against
+      check_lengths(is, size, 0, true, where);
       openvdb::MetaMap meta;
       meta.readMeta(is);
       const std::int32_t count = readGridCount(is);
       if (!is || count < 0 || count > 100000)
         throw_invalid("not a readable OpenVDB file: it claims " + std::to_string(count) + " grids", where);
       for (std::int32_t i = 0; i < count; ++i) {
+        check_lengths(is, size, fileVersion() >= openvdb::OPENVDB_FILE_VERSION_GRID_INSTANCING ? 3 : 2, false, where);
         openvdb::io::GridDescriptor gd;
         gd.read(is);
         if (!is || gd.getEndPos() > size || gd.getEndPos() < gd.getGridPos() || gd.getGridPos() < 0 ||
@@ -162,14 +214,28 @@ std::vector<std::string> check_complete(const std::filesystem::path& path, const
 // the leaves are serial (no TBB in a forked child). Once per file and size.
 void probe_readable(const std::filesystem::path& path, const Location& where, const RunContext& ctx) {
   static std::mutex mutex;
-  static std::set<std::pair<std::string, std::uintmax_t>> probed;
+  // A file is the same file while its path, size and modification time are (a rewrite of the
+  // same size is probed again).
+  static std::set<std::tuple<std::string, std::uintmax_t, std::int64_t>> probed;
   std::error_code ec;
-  const auto key = std::make_pair(std::filesystem::absolute(path, ec).string(), std::filesystem::file_size(path, ec));
+  const auto mtime = std::filesystem::last_write_time(path, ec).time_since_epoch().count();
+  const auto key = std::make_tuple(std::filesystem::absolute(path, ec).string(), std::filesystem::file_size(path, ec),
+                                   static_cast<std::int64_t>(mtime));
   {
     std::lock_guard<std::mutex> lock(mutex);
     if (probed.count(key)) return;
   }
+  // What reading may take: what this process may use, but no more than 512 MiB + 256 x the file's
+  // size (far beyond any compression ratio): a damaged length field must not make a small file
+  // take gigabytes, here or in this process after the probe.
   const MemoryLimit limit = host_memory_limit();
+  const double proportional = 512.0 * 1048576.0 + 256.0 * static_cast<double>(std::get<1>(key));
+  const std::size_t budget =
+      limit.bytes > 0 ? static_cast<std::size_t>(std::min<double>(static_cast<double>(limit.bytes), proportional))
+                      : static_cast<std::size_t>(proportional);
+  // And how long: 30 s plus a second per MiB (reading runs at hundreds of MiB/s; a corrupt file
+  // can make OpenVDB loop for ever).
+  const double timeout = 30.0 + static_cast<double>(std::get<1>(key)) / 1048576.0;
   const IsolatedOutcome o = run_isolated(
       [&] {
         openvdb::io::File file(path.string());
@@ -188,13 +254,14 @@ void probe_readable(const std::filesystem::path& path, const Location& where, co
         }
         file.close();
       },
-      600.0, ctx, limit.bytes);
+      timeout, ctx, budget);
   switch (o.kind) {
     case IsolatedOutcome::Kind::Ok: break;
     case IsolatedOutcome::Kind::Threw: throw_invalid(path.string() + ": " + o.message, where);
     case IsolatedOutcome::Kind::Crashed:
       throw_invalid("the grid data of " + path.string() + " cannot be read (damaged data?): OpenVDB failed reading it (" +
-                        o.message + "; a corrupt file, or one too large for this machine's memory)",
+                        o.message + "; a corrupt file, or one that needs more than " + gib(static_cast<double>(budget)) +
+                        " of memory to read)",
                     where);
     case IsolatedOutcome::Kind::TimedOut:
       throw_invalid("the grid data of " + path.string() + " cannot be read: reading it took more than " + o.message,

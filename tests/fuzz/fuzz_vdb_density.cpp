@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <string>
 
@@ -13,7 +14,11 @@
 #include "lblight/io/vdb_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string file = "/tmp/lblight-fuzz-" + std::to_string(::getpid()) + ".vdb";
+  // A new name for every input: lblight probes each file once per path, size and time.
+  static std::string file;
+  static unsigned long counter = 0;
+  if (!file.empty()) std::remove(file.c_str());
+  file = "/tmp/lblight-fuzz-" + std::to_string(::getpid()) + "-" + std::to_string(counter++) + ".vdb";
   {
     std::ofstream out(file, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
