@@ -31,8 +31,9 @@ double cos_between(int i, int j) {
 }  // namespace
 
 double discrete_mean_cosine(double g, int j) {
-  double m = 0;
-  for (int i = 1; i < kQ; ++i) m += weight(i) * normalized_phase(g, i, j) * cos_between(i, j);
+  double z = 0, m = 0;  // Z_j of [Geist2010] eq. (8) once, not once per i as normalized_phase does
+  for (int i = 1; i < kQ; ++i) z += weight(i) * hg_phase(g, i, j);
+  for (int i = 1; i < kQ; ++i) m += weight(i) * (hg_phase(g, i, j) / z) * cos_between(i, j);
   return m;
 }
 
@@ -62,11 +63,16 @@ OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const L
     const double len = model.path_length ? std::sqrt(static_cast<double>(length_sq(k))) : 1.0;
     removed[k] = model.path_length ? -std::expm1(-sigma_t * len) : sigma_t;
   }
+  // The matched g depends on j's class only (axial or diagonal; the lattice's symmetry): two
+  // bisections, not eighteen (this runs inside diffusion_match's own bisection).
+  const bool matched = model.phase_moment || model.diffusion_match;
+  const double g_axial = matched ? moment_matched_g(mean_cosine, 1) : mean_cosine;
+  const double g_diagonal = matched ? moment_matched_g(mean_cosine, 7) : mean_cosine;
   OmegaMatrix om{};
   om[0] = -1.0;
   for (int j = 1; j < kQ; ++j) {
     om[j] = model.remove_absorbed ? 0.0 : removed[j] * (1.0 - albedo);
-    const double gj = model.phase_moment || model.diffusion_match ? moment_matched_g(mean_cosine, j) : mean_cosine;
+    const double gj = is_axial(j) ? g_axial : g_diagonal;
     double z = 0;  // Z_j of [Geist2010] eq. (8)
     for (int k = 1; k < kQ; ++k) z += weight(k) * hg_phase(gj, k, j);
     for (int i = 1; i < kQ; ++i) {
