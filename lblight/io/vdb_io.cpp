@@ -236,25 +236,27 @@ void probe_readable(const std::filesystem::path& path, const Location& where, co
   // And how long: 30 s plus a second per MiB (reading runs at hundreds of MiB/s; a corrupt file
   // can make OpenVDB loop for ever).
   const double timeout = 30.0 + static_cast<double>(std::get<1>(key)) / 1048576.0;
-  const IsolatedOutcome o = run_isolated(
-      [&] {
-        openvdb::io::File file(path.string());
-        file.open(/*delayLoad=*/false);
-        for (auto it = file.beginName(); it != file.endName(); ++it) {
-          try {
-            const openvdb::GridBase::Ptr g = file.readGrid(it.gridName());
-            g->apply<openvdb::GridTypes>([](const auto& grid) {
-              std::size_t leaves = 0;
-              for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) leaves += leaf->onVoxelCount() > 0;
-              (void)leaves;
-            });
-          } catch (const std::exception& e) {
-            throw std::runtime_error("grid '" + it.gridName() + "' cannot be read (damaged data?): " + e.what());
-          }
-        }
-        file.close();
-      },
-      timeout, ctx, budget);
+  const auto read_all = [&] {
+    openvdb::io::File file(path.string());
+    file.open(/*delayLoad=*/false);
+    for (auto it = file.beginName(); it != file.endName(); ++it) {
+      try {
+        const openvdb::GridBase::Ptr g = file.readGrid(it.gridName());
+        g->apply<openvdb::GridTypes>([](const auto& grid) {
+          std::size_t leaves = 0;
+          for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) leaves += leaf->onVoxelCount() > 0;
+          (void)leaves;
+        });
+      } catch (const std::exception& e) {
+        throw std::runtime_error("grid '" + it.gridName() + "' cannot be read (damaged data?): " + e.what());
+      }
+    }
+    file.close();
+  };
+  IsolatedOutcome o = run_isolated(read_all, timeout, ctx, budget);
+  // A child forked while another thread held a lock (the allocator's, under a sanitizer) can hang
+  // for no fault of the file: one more try before the file is blamed.
+  if (o.kind == IsolatedOutcome::Kind::TimedOut) o = run_isolated(read_all, timeout, ctx, budget);
   switch (o.kind) {
     case IsolatedOutcome::Kind::Ok: break;
     case IsolatedOutcome::Kind::Threw: throw_invalid(path.string() + ": " + o.message, where);
