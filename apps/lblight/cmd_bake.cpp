@@ -34,6 +34,7 @@ class ProgressLog final : public BakeObserver {
     spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice)",
                  mp.spec->name, d.nx, d.ny, d.nz, mp.solutions.size(), mp.channels.size(), backend.name(),
                  format_bytes(static_cast<double>(bytes)));
+    if (!mp.steps.method_note.empty()) spdlog::info("model '{}': {}", mp.spec->name, mp.steps.method_note);
     last_beat_ = std::chrono::steady_clock::now();
   }
 

@@ -51,9 +51,11 @@ int run_report(const ReportArgs& args) {
     for (const std::string& r : args.runs) {
       const auto colon = r.find(':');
       const std::string method = r.substr(0, colon), prec = colon == std::string::npos ? "float32" : r.substr(colon + 1);
-      if (method != "plain" && method != "bicgstab")
-        throw_invalid("--runs '" + r + "': allowed: plain or bicgstab, optionally :float32/:float64/:float16");
-      opt.runs.push_back({method == "bicgstab" ? SolverMethod::BiCGStab : SolverMethod::Plain, parse_precision(prec)});
+      const auto m = parse_solver_method(method);
+      if (!m)
+        throw_invalid("--runs '" + r + "': allowed: " + std::string(kSolverMethodNames) +
+                      ", optionally :float32/:float64/:float16");
+      opt.runs.push_back({*m, parse_precision(prec)});
     }
   } else if (backend->supports(Precision::Float16)) {
     opt.runs.push_back({SolverMethod::Plain, Precision::Float16});

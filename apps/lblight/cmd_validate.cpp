@@ -42,6 +42,7 @@ std::string savings_lines(const ModelPlan& mp) {
     for (int idx : sv.solutions_left_out) t << " " << base_grid_name(idx);
     t << " (no sun the scene allows selects them)\n";
   }
+  if (!mp.steps.method_note.empty()) t << "  " << mp.steps.method_note << "\n";
   if (sv.ambient_from_sum) t << "  B00 from the sum of B01..B18 (empty boundary layer, docs/model.md sec. 4): not solved\n";
   if (sv.channels_solved < kChannels)
     t << "  " << sv.channels_solved << " channel(s) solved for R, G, B (channels with equal materials share one)\n";

@@ -28,9 +28,10 @@ void SolveOptions::add_to(CLI::App& cmd) {
                  "Target relative error for --iterations auto (default: the scene's, else 1e-4)")
       ->check(finite_range(1e-15, 0.5));
   cmd.add_option("--method", method,
-                 "Steady-state solver: plain (iterate the LB step, as the papers) or bicgstab (Krylov solver for "
-                 "the same fixed point; needs --iterations auto) (default: the scene's)")
-      ->check(CLI::IsMember({"plain", "bicgstab"}));
+                 "Steady-state solver: plain (iterate the LB step, as the papers), bicgstab (Krylov solver for "
+                 "the same fixed point) or dsa (LB steps corrected by a multigrid diffusion solve: thick "
+                 "scattering media, docs/accuracy.md); bicgstab and dsa need --iterations auto (default: the scene's)")
+      ->check(CLI::IsMember({"plain", "bicgstab", "dsa"}));
   cmd.add_option("--precision", precision, "Lattice storage: float32, float64 (cpu) or float16 (cuda)")
       ->check(CLI::IsMember({"float32", "float64", "float16"}));
 }
@@ -47,7 +48,7 @@ PlanOverrides SolveOptions::overrides() const {
   }
   if (tolerance > 0) ov.tolerance = tolerance;
   if (!precision.empty()) ov.precision = parse_precision(precision);
-  if (!method.empty()) ov.method = method == "bicgstab" ? SolverMethod::BiCGStab : SolverMethod::Plain;
+  if (!method.empty()) ov.method = parse_solver_method(method).value_or(SolverMethod::Plain);
   return ov;
 }
 

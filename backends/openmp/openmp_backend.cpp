@@ -263,6 +263,30 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           }
   }
 
+  // In place: f_m(q) is g_m(q - c_m), and each (m, q) owns its entry, so rows run in parallel.
+  void add_mode(int system, const std::vector<double>& phi, const ModeShapes& shape,
+                const std::vector<std::uint8_t>& /*material: the solver's own*/) override {
+    Slot& slot = slots_.at(static_cast<std::size_t>(system));
+    if (phi.size() != n_) throw std::invalid_argument("add_mode: wrong size");
+    if (now_ == 0) now_ = 1;  // as write_state
+    Real* g = slot.buffer(cur_);
+#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x) {
+          const std::size_t i = d_.index(x, y, z);
+          const double v = phi[i];
+          if (v == 0.0) continue;
+          const auto& sh = shape[material_[i]];
+          for (int m = 0; m < kQ; ++m) {
+            const int px = x - d3q19::cx(m), py = y - d3q19::cy(m), pz = z - d3q19::cz(m);
+            if (d_.is_boundary(px, py, pz)) continue;
+            Real& e = g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(px, py, pz))];
+            e = static_cast<Real>(static_cast<double>(e) + sh[m] * v);
+          }
+        }
+  }
+
   std::size_t bytes_in_use() const override {
     std::size_t bytes = density_.size() * sizeof(float) + material_.size() + wood_.size() * sizeof(float);
     for (const Slot& s : slots_) bytes += (s.state.size() + s.totals.size() + s.scratch.size()) * sizeof(Real);

@@ -51,4 +51,15 @@ CollisionOp<double> channel_op(const ChannelMaterials& channel, int material) {
   return reduce_omega(channel.omega[k], channel.voxel_average[k]);
 }
 
+void StateAccess::add_mode(int system, const std::vector<double>& phi, const ModeShapes& shape,
+                           const std::vector<std::uint8_t>& material) {
+  std::vector<double> f;
+  read_state(system, f);
+  const std::size_t n = phi.size();
+  if (f.size() != 19 * n || material.size() != n) throw std::invalid_argument("add_mode: wrong sizes");
+  for (int m = 0; m < 19; ++m)
+    for (std::size_t i = 0; i < n; ++i) f[static_cast<std::size_t>(m) * n + i] += shape[material[i]][m] * phi[i];
+  write_state(system, f);
+}
+
 }  // namespace lblight

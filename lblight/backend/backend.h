@@ -124,14 +124,21 @@ class KrylovVectors {
   virtual double vector_dot(int x, int y) = 0;     // summed in a fixed order (deterministic)
 };
 
-// Raw state access for tests and diagnostics: 19 * count values, direction-major, the values
-// f_m(node) a step starts from (whatever the backend's own layout).
+// Raw state access for tests, diagnostics and the accelerated solver (solve/dsa.h): 19 * count
+// values, direction-major, the values f_m(node) a step starts from (whatever the backend's own
+// layout).
 class StateAccess {
  public:
+  using ModeShapes = std::array<std::array<double, 19>, kMaxMaterials>;
   virtual ~StateAccess() = default;
   virtual void read_state(int system, std::vector<double>& f) const = 0;
   // Keeps the boundary-fed entries at their boundary values.
   virtual void write_state(int system, const std::vector<double>& f) = 0;
+  // f_m(q) += shape[material(q)][m] * phi(q) at every interior node q (phi: count values), the
+  // boundary-fed entries kept. This default reads and writes the whole state through the two
+  // calls above; a backend does it in place where it can.
+  virtual void add_mode(int system, const std::vector<double>& phi, const ModeShapes& shape,
+                        const std::vector<std::uint8_t>& material);
 };
 
 class Backend {

@@ -1,5 +1,7 @@
 #include "lblight/lattice/lb_model.h"
 
+#include "lblight/lattice/diffusion_limit.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -98,30 +100,8 @@ double lattice_diffusion(const OmegaMatrix& om, const std::array<double, kQ>& re
   for (int i = 1; i < kQ; ++i) sum += e[i] = removed[i] > 0 ? weight(i) / removed[i] : 0.0;
   if (!(sum > 0)) return std::numeric_limits<double>::infinity();
   for (double& v : e) v /= sum;
-  // Chapman-Enskog: D = sum_i c_ix y_i - 1/2 sum_i c_ix^2 e_i with (-Omega) y = c_x e. y is odd
-  // (y_b = -y_a over antipodal pairs a, b), where Omega acts as the 9x9 block of a_m rows and
-  // columns minus b_m columns: nonsingular even without absorption.
-  constexpr int n = kQ / 2;
-  double a[n][n + 1];
-  for (int m = 0; m < n; ++m) {
-    const int am = 2 * m + 1;
-    for (int k = 0; k < n; ++k) a[m][k] = -(om[am * kQ + 2 * k + 1] - om[am * kQ + 2 * k + 2]);
-    a[m][n] = cx(am) * e[am];
-  }
-  for (int c = 0; c < n; ++c) {  // Gaussian elimination with partial pivoting
-    int piv = c;
-    for (int r = c + 1; r < n; ++r)
-      if (std::abs(a[r][c]) > std::abs(a[piv][c])) piv = r;
-    for (int k = 0; k <= n; ++k) std::swap(a[c][k], a[piv][k]);
-    if (a[c][c] == 0.0) return std::numeric_limits<double>::infinity();
-    for (int r = 0; r < n; ++r)
-      if (r != c) {
-        const double f = a[r][c] / a[c][c];
-        for (int k = c; k <= n; ++k) a[r][k] -= f * a[c][k];
-      }
-  }
-  double d = 0;
-  for (int m = 0; m < n; ++m) d += 2.0 * cx(2 * m + 1) * a[m][n] / a[m][m];
+  // Chapman-Enskog: D = sum_i c_ix y_i - 1/2 sum_i c_ix^2 e_i with (-Omega) y = c_x e.
+  double d = chapman_enskog_flux(om, e);
   for (int i = 1; i < kQ; ++i) d -= 0.5 * cx(i) * cx(i) * e[i];
   return d;
 }

@@ -226,6 +226,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
                     {"min_steps", mp.steps.min_steps},
                     {"max_steps", mp.steps.max_steps}};
   if (mp.steps.mode != IterationMode::Auto) model["steps"]["fixed_steps"] = mp.steps.fixed_steps;
+  if (!mp.steps.method_note.empty()) model["steps"]["method_note"] = mp.steps.method_note;
   model["peak_memory_bytes"] = peak_bytes_;
   model["solutions"] = nlohmann::json::array();
 

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -82,8 +83,9 @@ struct LightingSpec {
 };
 
 enum class IterationMode { Auto, Paper, Fixed };
-// Plain iteration of the LB step (the papers), or BiCGStab on the same fixed point (solve/krylov.h).
-enum class SolverMethod { Plain, BiCGStab };
+// Plain iteration of the LB step (the papers), BiCGStab on the same fixed point (solve/krylov.h),
+// or LB steps corrected by a diffusion solve (solve/dsa.h).
+enum class SolverMethod { Plain, BiCGStab, Dsa };
 
 struct SolverSpec {
   IterationMode mode = IterationMode::Auto;
@@ -134,6 +136,9 @@ std::vector<int> parse_solution_list(const std::string& text, const Location& wh
 
 const char* to_string(IterationMode mode);
 const char* to_string(SolverMethod method);
+// "plain", "bicgstab" or "dsa"; nullopt for anything else.
+std::optional<SolverMethod> parse_solver_method(const std::string& name);
+inline constexpr const char* kSolverMethodNames = "plain, bicgstab, dsa";
 const char* to_string(SourceType type);
 
 }  // namespace lblight

@@ -22,7 +22,19 @@ const char* to_string(IterationMode mode) {
   return "?";
 }
 
-const char* to_string(SolverMethod method) { return method == SolverMethod::BiCGStab ? "bicgstab" : "plain"; }
+const char* to_string(SolverMethod method) {
+  switch (method) {
+    case SolverMethod::BiCGStab: return "bicgstab";
+    case SolverMethod::Dsa: return "dsa";
+    default: return "plain";
+  }
+}
+
+std::optional<SolverMethod> parse_solver_method(const std::string& name) {
+  for (SolverMethod m : {SolverMethod::Plain, SolverMethod::BiCGStab, SolverMethod::Dsa})
+    if (name == to_string(m)) return m;
+  return std::nullopt;
+}
 
 const char* to_string(SourceType type) {
   switch (type) {
@@ -363,11 +375,10 @@ SolverSpec read_solver(const JsonReader& r) {
   s.max_iterations = static_cast<int>(r.integer_or("max_iterations", 0, 1, 100000000));
   s.check_interval = static_cast<int>(r.integer_or("check_interval", 0, 1, 100000));
   const std::string method = r.string_or("method", "plain");
-  if (method == "plain") s.method = SolverMethod::Plain;
-  else if (method == "bicgstab") s.method = SolverMethod::BiCGStab;
-  else r.fail("unknown solver method '" + method + "'; allowed: plain, bicgstab", "method");
-  if (s.method == SolverMethod::BiCGStab && s.mode != IterationMode::Auto)
-    r.fail("method bicgstab needs iterations \"auto\" (it stops on the error estimate)", "method");
+  if (const auto m = parse_solver_method(method)) s.method = *m;
+  else r.fail("unknown solver method '" + method + "'; allowed: " + kSolverMethodNames, "method");
+  if (s.method != SolverMethod::Plain && s.mode != IterationMode::Auto)
+    r.fail("method " + method + " needs iterations \"auto\" (it stops on the error estimate)", "method");
   const std::string prec = r.string_or("precision", "float32");
   if (prec == "float32") s.precision = Precision::Float32;
   else if (prec == "float64") s.precision = Precision::Float64;

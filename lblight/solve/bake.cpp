@@ -7,6 +7,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
+#include "lblight/solve/dsa.h"
 #include "lblight/solve/krylov.h"
 
 namespace lblight {
@@ -30,6 +31,7 @@ struct BatchOutcome {
   std::vector<CheckPoint> worst_history;  // the worst system at every check
   int krylov_iterations = 0;
   double krylov_residual = 0;
+  bool dsa_fell_back = false;  // DSA did not pay and plain checks finished the batch
 };
 
 class BatchRunner {
@@ -79,24 +81,112 @@ class BatchRunner {
       out_.steps += kr.steps;
       out_.krylov_iterations += kr.iterations;
       out_.krylov_residual = kr.residual;
-      // verification: a fresh monitor, a baseline measure, then plain checks
-      out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(pol.precision, 1.0 - pol.decay_hint));
-      reset_latches();
-      std::vector<Residual> ignore;
-      solver_.measure(ignore);
-      for (int c = 0; c < 6 && out_.steps < pol.max_steps; ++c)
-        if (check(std::min(pol.check_interval, pol.max_steps - out_.steps), pol.max_steps)) {
-          out_.converged = true;
-          return std::move(out_);
-        }
+      if (verify()) return std::move(out_);
       residual_tolerance *= 0.1;
     }
+    return std::move(out_);
+  }
+
+  // Cycles of LB steps, the last of each followed by a diffusion correction of every system
+  // (solve/dsa.h). Each cycle's change of the corrected totals goes to an accelerated monitor
+  // (convergence.h): the same tail estimate and latch as plain checks, with the cycle as the
+  // interval. corrections: one per system of the batch.
+  BatchOutcome dsa(const std::vector<DiffusionCorrection*>& corrections, const DsaSettings& settings) {
+    const StepPolicy& pol = mp_.steps;
+    StateAccess& state = *solver_.state_access();
+    const std::size_t systems = corrections.size(), n = mp_.lattice.dims.count();
+    const int m = std::max(2, settings.steps_per_correction);
+    // The mean change over the cycle's last `span` steps: 2 cancels light that swaps between
+    // opposite directions every step, which a single step's change would take for a residual.
+    const int span = std::clamp(settings.span, 1, m);
+    out_.monitors.assign(systems, ConvergenceMonitor::accelerated(pol.precision, settings.expected_contraction));
+    std::vector<std::vector<float>> before(systems, std::vector<float>(n)), after = before;
+    std::vector<std::vector<double>> last(systems, std::vector<double>(n, 0.0));
+    std::vector<double> phi, added;
+    std::vector<Residual> cycle(systems);
+    while (out_.steps + m <= pol.max_steps) {
+      const auto cycle_start = Clock::now();
+      solver_.step(m - span);
+      double step_seconds = seconds_since(cycle_start);
+      solver_.measure(residuals_);
+      for (std::size_t s = 0; s < systems; ++s) solver_.read_totals(static_cast<int>(s), before[s].data());
+      const auto last_steps = Clock::now();
+      solver_.step(span);
+      step_seconds += seconds_since(last_steps);
+      solver_.measure(residuals_);
+      out_.steps += m;
+      for (std::size_t s = 0; s < systems; ++s) {
+        solver_.read_totals(static_cast<int>(s), after[s].data());
+        const DiffusionSolveStats st = corrections[s]->solve(before[s], after[s], span, phi, &added);
+        out_.krylov_iterations += st.iterations;
+        state.add_mode(static_cast<int>(s), phi, corrections[s]->shapes(), mp_.lattice.material);
+        Residual r = residuals_[s];  // finite flag and reservoir deficit of the last step
+        r.diff_sq = r.total_sq = r.diff_max = r.total_max = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+          const double v = static_cast<double>(after[s][i]) + added[i], d = v - last[s][i];
+          r.diff_sq += d * d;
+          r.total_sq += v * v;
+          r.diff_max = std::max(r.diff_max, std::abs(d));
+          r.total_max = std::max(r.total_max, std::abs(v));
+          last[s][i] = v;
+        }
+        cycle[s] = r;
+      }
+      if (record_checks(m, pol.max_steps, cycle, true)) {
+        out_.converged = true;
+        break;
+      }
+      if (!pays(seconds_since(cycle_start), step_seconds / m)) {
+        // Where diffusion is not what slows the plain iteration (absorbing plants, forward
+        // peaks the lattice barely scatters), its steps are cheaper than cycles that do not
+        // contract faster: go on with plain checks from here.
+        solver_.measure(residuals_);
+        out_.monitors.assign(systems, ConvergenceMonitor(pol.precision, 1.0 - pol.decay_hint));
+        reset_latches();
+        out_.dsa_fell_back = true;
+        return plain();
+      }
+    }
+    solver_.measure(residuals_);  // the totals of the corrected state, which the bake stores
     return std::move(out_);
   }
 
   double seconds() const { return seconds_since(t0_); }
 
  private:
+  // DSA: whether the last cycles (after light has crossed the lattice) shrink the error faster
+  // per second than plain steps would, at the plan's slowest plain decay per step.
+  bool pays(double cycle_seconds, double step_seconds) const {
+    if (out_.steps < mp_.steps.min_steps) return true;
+    double worst = 0;
+    for (const ConvergenceMonitor& mon : out_.monitors) {
+      const auto& h = mon.history();
+      if (h.size() < 4) return true;
+      for (std::size_t k = h.size() - 3; k < h.size(); ++k)
+        if (h[k - 1].change_l2 > 0) worst = std::max(worst, h[k].change_l2 / h[k - 1].change_l2);
+    }
+    if (!(worst < 1.0)) return false;
+    const double dsa_rate = -std::log(worst) / std::max(cycle_seconds, 1e-12);
+    const double plain_rate = -std::log1p(-std::min(mp_.steps.decay_hint, 0.999)) / std::max(step_seconds, 1e-12);
+    return dsa_rate > plain_rate;
+  }
+
+  // After a Krylov solve: a fresh monitor, a baseline measure, then up to six plain checks with
+  // the usual estimate; true (and converged) once they show the tolerance.
+  bool verify() {
+    const StepPolicy& pol = mp_.steps;
+    out_.monitors.assign(out_.monitors.size(), ConvergenceMonitor(pol.precision, 1.0 - pol.decay_hint));
+    reset_latches();
+    std::vector<Residual> ignore;
+    solver_.measure(ignore);
+    for (int c = 0; c < 6 && out_.steps < pol.max_steps; ++c)
+      if (check(std::min(pol.check_interval, pol.max_steps - out_.steps), pol.max_steps)) {
+        out_.converged = true;
+        return true;
+      }
+    return false;
+  }
+
   void reset_latches() {
     out_.latched.assign(out_.monitors.size(), ConvergenceMonitor::kUnknown);
     out_.latched_max.assign(out_.monitors.size(), ConvergenceMonitor::kUnknown);
@@ -107,13 +197,20 @@ class BatchRunner {
     solver_.step(chunk);
     out_.steps += chunk;
     solver_.measure(residuals_);
+    return record_checks(chunk, planned, residuals_, false);
+  }
+
+  // Records one check per system (`residuals`, `interval` steps after the previous one) and
+  // reports progress; true when every system's estimate has been below tolerance. accelerated:
+  // min_steps does not apply (DSA: its cycles see light that is still crossing as change).
+  bool record_checks(int interval, int planned, const std::vector<Residual>& residuals, bool accelerated) {
     const double secs = seconds_since(t0_);
     double worst = 0, worst_max = 0;
     bool all_latched = true;
     CheckPoint worst_point;
     for (std::size_t s = 0; s < out_.monitors.size(); ++s) {
-      out_.monitors[s].record(out_.steps, chunk, secs, residuals_[s]);
-      if (!residuals_[s].finite)
+      out_.monitors[s].record(out_.steps, interval, secs, residuals[s]);
+      if (!residuals[s].finite)
         throw Error(ErrorCategory::Internal,
                     "model '" + mp_.spec->name + "': the iteration produced NaN or Inf at step " +
                         std::to_string(out_.steps) +
@@ -121,7 +218,7 @@ class BatchRunner {
       const CheckPoint& cp = out_.monitors[s].history().back();
       if (s == 0 || cp.error_estimate > worst_point.error_estimate || std::isnan(cp.error_estimate)) worst_point = cp;
       const double e = out_.monitors[s].error_estimate(), em = out_.monitors[s].error_estimate_max();
-      if (out_.steps >= mp_.steps.min_steps && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
+      if ((accelerated || out_.steps >= mp_.steps.min_steps) && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
         out_.latched[s] = std::min(out_.latched[s], e);
         out_.latched_max[s] = std::min(out_.latched_max[s], em);
       }
@@ -332,6 +429,15 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   so.max_systems = capacity;
   auto solver = backend.create(mp.lattice, mp.channels, so);
   if (mp.steps.method == SolverMethod::BiCGStab) krylov_vectors_of(*solver, backend.name());  // offered, or stop here
+  std::vector<std::unique_ptr<DiffusionCorrection>> corrections;  // DSA: one per channel
+  const DsaSettings dsa_settings;
+  if (mp.steps.method == SolverMethod::Dsa) {
+    if (!solver->state_access())
+      throw Error(ErrorCategory::Unavailable, "solver method dsa: the " + backend.name() +
+                                                  " backend offers no state access; use method plain or bicgstab");
+    for (const ChannelMaterials& ch : mp.channels)
+      corrections.push_back(std::make_unique<DiffusionCorrection>(mp.lattice, ch, dsa_settings));
+  }
   observer.model_started(mp, backend, solver->bytes_in_use());
 
   const std::vector<SystemRef> queue = system_queue(mp);
@@ -357,7 +463,12 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
 
     solver->reset(batch);
     BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size());
-    const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov() : runner.plain();
+    std::vector<DiffusionCorrection*> batch_corrections;
+    for (const SystemSpec& spec : batch)
+      if (!corrections.empty()) batch_corrections.push_back(corrections[static_cast<std::size_t>(spec.channel)].get());
+    const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov()
+                                 : mp.steps.method == SolverMethod::Dsa    ? runner.dsa(batch_corrections, dsa_settings)
+                                                                           : runner.plain();
     const double batch_seconds = runner.seconds();
     observer.memory_in_use(mp, solver->bytes_in_use());
 

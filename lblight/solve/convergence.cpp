@@ -48,8 +48,16 @@ double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floo
   const double now = ys.back();
   if (!std::isfinite(now)) return kUnknown;
   if (now == 0.0) return floor;
-  bool positive = n >= 5;
+  bool positive = n >= (accelerated_ ? 4 : 5);
   for (double y : ys) positive = positive && y > 0.0;
+  if (positive && accelerated_ && now > round_off_) {
+    const double r = std::max({ys[n - 1] / ys[n - 2], ys[n - 2] / ys[n - 3], ys[n - 3] / ys[n - 4]});
+    if (r < kAcceleratedRatio) {
+      if (ratio) *ratio = r;
+      return std::max(2.0 * now * r / (1.0 - r), floor);
+    }
+  }
+  positive = positive && n >= 5;  // the settled-ratio test below needs four ratios
   if (positive) {
     const double r1 = ys[n - 1] / ys[n - 2], r2 = ys[n - 2] / ys[n - 3], r3 = ys[n - 3] / ys[n - 4],
                  r4 = ys[n - 4] / ys[n - 5];
@@ -71,7 +79,9 @@ double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floo
   }
   // Irregular changes at the noise level: the iteration has stalled on rounding, as converged as
   // the precision allows; the rounding floor (record()) says how far that is from the fixed point.
-  if (now <= round_off_) return std::max({round_off_, floor, rounding_floor()});
+  // An accelerated iteration must have shown its contraction first (its cycles are few, and a
+  // stagnating one also makes small changes).
+  if (now <= round_off_ && !(accelerated_ && settled_q_ < 0)) return std::max({round_off_, floor, rounding_floor()});
   return kUnknown;  // not contracting yet (light still spreading) or the ratio is still moving
 }
 

@@ -42,6 +42,17 @@ class ConvergenceMonitor {
   explicit ConvergenceMonitor(Precision p, double q_hint = -1)
       : round_off_(round_off_for(p)), unit_(unit_roundoff(p)), q_hint_(q_hint) {}
 
+  // For an accelerated iteration (solve/dsa.h), whose changes per cycle shrink fast but with
+  // ratios that wander between several modes: once the last three ratios are all below
+  // kAcceleratedRatio, the tail is bounded with the largest of them (a series whose ratios stay
+  // below r sums to at most change * r / (1 - r)), doubled as for the plain iteration.
+  static ConvergenceMonitor accelerated(Precision p, double q_hint) {
+    ConvergenceMonitor m(p, q_hint);
+    m.accelerated_ = true;
+    return m;
+  }
+  static constexpr double kAcceleratedRatio = 0.5;
+
   // A measure() taken at `step`, `interval` steps after the previous one.
   void record(int step, int interval, double seconds, const Residual& r);
 
@@ -61,6 +72,7 @@ class ConvergenceMonitor {
 
   double round_off_, unit_;
   double q_hint_ = -1;
+  bool accelerated_ = false;
   double settled_q_ = -1;  // last settled contraction per step (-1: none yet)
   std::vector<CheckPoint> history_;
 };

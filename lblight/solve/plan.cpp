@@ -227,13 +227,13 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
   st.mode = ov.mode.value_or(scene.solver.mode);
   st.method = ov.method.value_or(scene.solver.method);
   st.precision = precision;
-  if (st.method == SolverMethod::BiCGStab && st.mode != IterationMode::Auto)
-    throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate), not " +
+  if (st.method != SolverMethod::Plain && st.mode != IterationMode::Auto)
+    throw_invalid(std::string("solver method ") + to_string(st.method) + " needs iterations \"auto\" (it stops on the error estimate), not " +
                       std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +
                       "; set --iterations auto or solver.iterations \"auto\"",
                   {scene.file.string(), "/solver/method", {}});
-  if (st.method == SolverMethod::BiCGStab && precision == Precision::Float16)
-    throw_invalid("solver method bicgstab runs on float32 storage, not float16; use method plain with float16, or "
+  if (st.method != SolverMethod::Plain && precision == Precision::Float16)
+    throw_invalid(std::string("solver method ") + to_string(st.method) + " runs on float32 storage, not float16; use method plain with float16, or "
                   "precision float32",
                   {scene.file.string(), "/solver/method", {}});
   if (precision == Precision::Float16)
@@ -257,6 +257,15 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
                            ? std::clamp(estimate_steps(mp, st.tolerance), static_cast<double>(st.min_steps),
                                         static_cast<double>(st.max_steps))
                            : st.fixed_steps;
+  // DSA removes the diffusive slow-down; where plain iteration converges within a few crossings
+  // of the lattice (absorbing plants: light is absorbed before it diffuses far) its cycles cost
+  // more than they save (docs/accuracy.md, "Cost against lattice size").
+  if (st.method == SolverMethod::Dsa && mp.estimated_steps < kDsaMinCrossings * longest) {
+    st.method = SolverMethod::Plain;
+    st.method_note = "dsa asked, plain chosen: plain iteration needs about " +
+                     std::to_string(static_cast<long long>(mp.estimated_steps)) + " steps, under " +
+                     std::to_string(static_cast<int>(kDsaMinCrossings)) + " crossings of the lattice";
+  }
 }
 
 }  // namespace

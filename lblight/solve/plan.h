@@ -51,6 +51,10 @@ struct PlanSavings {
   bool cropped = false;
 };
 
+// Method dsa runs plain iteration where that is estimated to need fewer steps than this many
+// crossings of the lattice's longest edge (measured: docs/accuracy.md).
+inline constexpr double kDsaMinCrossings = 8.0;
+
 struct StepPolicy {
   IterationMode mode = IterationMode::Auto;
   SolverMethod method = SolverMethod::Plain;
@@ -60,6 +64,7 @@ struct StepPolicy {
   int check_interval = 16;  // steps between convergence measurements
   double tolerance = 1e-4;
   Precision precision = Precision::Float32;  // the state's storage, as BakePlan::precision
+  std::string method_note;  // why the plan chose another method than asked (empty: none)
   double decay_hint = 0;    // rough slowest decay per step (diffusion + absorption), for the
                             // rounding floor before the iteration shows its own (convergence.h)
 };
