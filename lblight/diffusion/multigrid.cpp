@@ -6,7 +6,7 @@
 
 namespace lblight {
 
-DiffusionProblem diffusion_problem(const Dims& d, std::vector<double> a, const std::vector<double>& D) {
+DiffusionProblem diffusion_problem(const Dims& d, std::vector<double> a, const std::vector<double>& D, FaceMean mean) {
   const std::size_t n = d.count();
   if (a.size() != n || D.size() != n) throw std::invalid_argument("diffusion_problem: one a and D per node");
   DiffusionProblem p;
@@ -18,6 +18,7 @@ DiffusionProblem diffusion_problem(const Dims& d, std::vector<double> a, const s
   p.boundary.assign(n, 0.0);
   auto face = [&](std::size_t i, std::size_t j) {
     const double s = D[i] + D[j];
+    if (mean == FaceMean::Arithmetic) return 0.5 * s;
     return s > 0 ? 2.0 * D[i] * D[j] / s : 0.0;
   };
   for (int z = 0; z < d.nz; ++z)

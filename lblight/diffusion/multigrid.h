@@ -28,9 +28,12 @@ struct DiffusionProblem {
   std::vector<double> boundary;  // summed conductance from node i to boundary-layer neighbours
 };
 
-// Conductances from per-node diffusion coefficients D: harmonic mean on each face (the flux
-// through a face between two media), D of the interior node itself towards the boundary layer.
-DiffusionProblem diffusion_problem(const Dims& interior, std::vector<double> a, const std::vector<double>& D);
+// Conductances from per-node diffusion coefficients D: the harmonic mean on each face (the flux
+// through a face between two media) or the arithmetic mean ([Koerner2014] eq. 31), D of the
+// interior node itself towards the boundary layer.
+enum class FaceMean { Harmonic, Arithmetic };
+DiffusionProblem diffusion_problem(const Dims& interior, std::vector<double> a, const std::vector<double>& D,
+                                   FaceMean mean = FaceMean::Harmonic);
 
 struct DiffusionSolveStats {
   int iterations = 0;       // CG iterations (one V-cycle each)

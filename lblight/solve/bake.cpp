@@ -99,7 +99,9 @@ class BatchRunner {
     // The mean change over the cycle's last `span` steps: 2 cancels light that swaps between
     // opposite directions every step, which a single step's change would take for a residual.
     const int span = std::clamp(settings.span, 1, m);
-    out_.monitors.assign(systems, ConvergenceMonitor::accelerated(pol.precision, settings.expected_contraction));
+    // the residual comes from float32 totals (read_totals): their round-off, whatever the storage
+    const Precision noise = pol.precision == Precision::Float16 ? Precision::Float16 : Precision::Float32;
+    out_.monitors.assign(systems, ConvergenceMonitor::accelerated(noise, settings.expected_contraction));
     std::vector<std::vector<float>> before(systems, std::vector<float>(n)), after = before;
     std::vector<std::vector<double>> last(systems, std::vector<double>(n, 0.0));
     std::vector<double> phi, added;
@@ -229,7 +231,8 @@ class BatchRunner {
     out_.worst_history.push_back(worst_point);
     const BakeProgress ev{&mp_, solutions_, out_.steps, planned, worst, secs, worst_max};
     observer_.progress(ev);
-    observer_.inspect(ev, solver_, true);
+    if (!accelerated || observer_.wants_iterates())
+      observer_.inspect(ev, solver_, !accelerated);  // DSA: the totals predate the last correction
     ctx_.check_cancelled();
     return all_latched;
   }

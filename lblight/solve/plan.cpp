@@ -246,6 +246,11 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
                             "and the result up, or use float32",
                         {scene.file.string(), "/lighting/intensity", {}});
   st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
+  if (st.method == SolverMethod::Dsa && st.tolerance < kDsaMinTolerance)
+    throw_invalid("solver method dsa reaches about " + message_number(kDsaMinTolerance) +
+                      " (its residual comes from float32 totals), not tolerance " + message_number(st.tolerance) +
+                      "; use method bicgstab with precision float64 for tighter tolerances",
+                  {scene.file.string(), "/solver/tolerance", {}});
   st.check_interval = scene.solver.check_interval > 0 ? scene.solver.check_interval
                                                       : std::clamp((longest + 2) / 4, 4, 16);
   st.min_steps = longest;

@@ -54,6 +54,9 @@ struct PlanSavings {
 // Method dsa runs plain iteration where that is estimated to need fewer steps than this many
 // crossings of the lattice's longest edge (measured: docs/accuracy.md).
 inline constexpr double kDsaMinCrossings = 8.0;
+// The smallest tolerance method dsa takes: its residual comes from float32 totals, whose
+// round-off (convergence.h) is 2e-6 per check.
+inline constexpr double kDsaMinTolerance = 2e-6;
 
 struct StepPolicy {
   IterationMode mode = IterationMode::Auto;
