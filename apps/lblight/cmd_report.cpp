@@ -14,6 +14,7 @@
 #include "lblight/core/error.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/io/svg_plot.h"
+#include "lblight/pipeline/truth_report.h"
 #include "lblight/solve/report.h"
 
 namespace lblight::cli {
@@ -25,6 +26,8 @@ struct ReportArgs {
   std::string study = "0,6";
   std::vector<std::string> runs;
   std::string channel = "auto";
+  bool truth = false;
+  double truth_error = 0.02;
 };
 
 nlohmann::json finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
@@ -122,6 +125,54 @@ int run_report(const ReportArgs& args) {
                                        "wall seconds", "relative L2 error of the totals", series));
     plots.push_back(name);
   }
+  if (args.truth) {
+    TruthReportOptions to;
+    to.solutions = opt.solutions;
+    to.channel = opt.channel;
+    to.truth_error = args.truth_error;
+    const TruthReport tr = make_truth_report(scene, ov, *backend, to, ctx);
+    nlohmann::json tj;
+    tj["truth_error"] = args.truth_error;
+    tj["references"] = nlohmann::json::array();
+    for (const TruthReference& r : tr.references)
+      tj["references"].push_back({{"model", r.model}, {"solution", r.solution}, {"channel", r.channel},
+                                  {"seconds", r.seconds}, {"relative_std_error", r.std_error}, {"photons", r.photons}});
+    std::ostringstream tcsv;
+    tcsv << "model,solution,run,seconds,error_against_truth\n";
+    tj["curves"] = nlohmann::json::array();
+    Table ttable({"model", "solution", "run", "seconds", "error against light (final)"});
+    for (const TruthCurve& c : tr.curves) {
+      nlohmann::json pts = nlohmann::json::array();
+      for (const auto& p : c.points) {
+        pts.push_back({p[0], p[1]});
+        tcsv << c.model << "," << c.solution << "," << c.run << "," << p[0] << "," << p[1] << "\n";
+      }
+      tj["curves"].push_back({{"model", c.model}, {"solution", c.solution}, {"run", c.run},
+                              {"points [seconds, relative L2 against the Monte Carlo reference]", pts}});
+      if (!c.points.empty())
+        ttable.add({c.model, c.solution, c.run, format_seconds(c.points.back()[0]), format_error(c.points.back()[1])});
+    }
+    write_file_atomically(dir.path("truth.json"), tj.dump(2) + "\n");
+    write_file_atomically(dir.path("truth.csv"), tcsv.str());
+    for (const TruthReference& r : tr.references) {
+      std::vector<PlotSeries> series;
+      int colour = 0;
+      for (const TruthCurve& c : tr.curves) {
+        if (c.model != r.model || c.solution != r.solution) continue;
+        PlotSeries s{c.run, {}, kColours[colour++ % 6], false};
+        for (const auto& p : c.points) s.points.push_back({p[0], p[1]});
+        series.push_back(s);
+      }
+      const std::string name = r.model + "-" + r.solution + "-truth.svg";
+      write_file_atomically(dir.path(name),
+                            svg_log_plot(scene.name + ": " + r.model + " " + r.solution + " (" + r.channel +
+                                             ") against the Monte Carlo reference (rel. std. error " +
+                                             format_error(r.std_error) + ")",
+                                         "wall seconds", "relative L2 error against physical light", series, 1e-3));
+      plots.push_back(name);
+    }
+    std::cout << ttable.str() << "against the Monte Carlo reference: wrote truth.json, truth.csv\n";
+  }
   dir.commit();
   std::cout << table.str() << "tolerance " << rep.tolerance << "; wrote report.json, report.csv and " << plots.size()
             << " plot(s) to " << target.string() << "\n";
@@ -151,6 +202,13 @@ Command add_report_command(CLI::App& app, const GlobalOptions&) {
       ->check(CLI::IsMember({"auto", "red", "green", "blue"}))
       ->capture_default_str();
   cmd->add_option("-o,--output", args->output, "Output directory (default: <scene name>-report)")->check(kNonEmpty);
+  cmd->add_flag("--truth", args->truth,
+                "Also the error against physical light: each studied solution traced by the Monte Carlo reference, "
+                "then the papers' and the calibrated LB (every check), CDA and FLD, and another Monte Carlo run at "
+                "growing sample counts against it (truth.json, truth.csv, <model>-<solution>-truth.svg)");
+  cmd->add_option("--truth-error", args->truth_error, "The reference's relative standard error (with --truth)")
+      ->check(finite_range(1e-4, 0.5))
+      ->capture_default_str();
   return {cmd, [args] { return run_report(*args); }};
 }
 

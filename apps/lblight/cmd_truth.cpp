@@ -18,6 +18,7 @@ namespace {
 
 struct TruthArgs {
   std::string scene, output, solutions;
+  std::string method = "montecarlo", diffusion_solver = "multigrid";
   int threads = 0;
   MonteCarloOptions mc;
 };
@@ -62,11 +63,20 @@ int run_truth(const TruthArgs& args, const GlobalOptions& global) {
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
   std::size_t total = 0;
   for (const ModelPlan& mp : plan.models) total += mp.solutions.size();
-  spdlog::info("scene '{}': Monte Carlo reference of {} solution(s), target relative standard error {}", scene.name,
-               total, args.mc.target_error);
   TruthLog log(total);
-  const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  lblight::run_truth(plan, args.mc, target, global.command_line, log, ctx, before);
+  if (args.method == "montecarlo") {
+    spdlog::info("scene '{}': Monte Carlo reference of {} solution(s), target relative standard error {}", scene.name,
+                 total, args.mc.target_error);
+    const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    lblight::run_truth(plan, args.mc, target, global.command_line, log, ctx, before);
+  } else {
+    DiffusionRunOptions o;
+    o.limiter = args.method == "fld" ? FluxLimiter::LevermorePomraning : FluxLimiter::Classical;
+    o.solver = args.diffusion_solver == "gauss-seidel" ? DiffusionSolver::GaussSeidel : DiffusionSolver::Multigrid;
+    spdlog::info("scene '{}': {} of {} solution(s)", scene.name, args.method == "fld" ? "flux-limited diffusion" : "classical diffusion", total);
+    const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    lblight::run_diffusion(plan, o, target, global.command_line, log, ctx, before);
+  }
   Table table({"model", "solution", "photons", "seconds", "rel. std. error"});
   for (const auto& row : log.rows_) table.add(row);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -91,6 +101,16 @@ Command add_truth_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--solutions", args->solutions, "Base solutions: 'all' or indices/ranges such as 0,6 (default: the "
                                                   "scene's)")
       ->check(kNonEmpty);
+  cmd->add_option("--method", args->method,
+                  "montecarlo (the reference), or the diffusion approximations of [Koerner2014] for comparison: cda "
+                  "(classical) or fld (flux-limited), each on ray-marched uncollided light (docs/truth.md)")
+      ->check(CLI::IsMember({"montecarlo", "cda", "fld"}))
+      ->capture_default_str();
+  cmd->add_option("--diffusion-solver", args->diffusion_solver,
+                  "For cda and fld: multigrid (Picard iterations, multigrid-preconditioned CG) or gauss-seidel "
+                  "([Koerner2014] Algorithm 1)")
+      ->check(CLI::IsMember({"multigrid", "gauss-seidel"}))
+      ->capture_default_str();
   cmd->add_option("--target-error", args->mc.target_error,
                   "Stop each solution and channel at this relative standard error (L2 over the occupied nodes)")
       ->check(finite_range(1e-6, 1.0))

@@ -71,7 +71,7 @@ class Fields {
                                d_.index(x, y + 1, z), d_.index(x, y, z - 1), d_.index(x, y, z + 1)};
     const bool outer[6] = {x == 1, x == d_.nx - 2, y == 1, y == d_.ny - 2, z == 1, z == d_.nz - 2};
     for (int k = 0; k < 6; ++k) {
-      const double dps = outer[k] ? D[i] : 0.5 * (D[i] + D[nb[k]]);
+      const double dps = outer[k] ? wall(D[i]) : 0.5 * (D[i] + D[nb[k]]);
       num += dps * phi[nb[k]];
       den += dps;
     }
@@ -91,6 +91,11 @@ class Fields {
     });
     return j_rms_ > 0 ? std::sqrt(r2 / static_cast<double>(count)) / j_rms_ : 0.0;
   }
+
+  // Conductance towards the outer layer of a node with coefficient D: D over the node spacing
+  // (phi held on the layer), or half a voxel of diffusion in series with Marshak's surface
+  // resistance 2 (J = phi_s / 2): D / (0.5 + 2 D).
+  double wall(double D_node) const { return m_.marshak ? D_node / (0.5 * m_.voxel + 2.0 * D_node) * m_.voxel : D_node; }
 
   const Dims& dims() const { return d_; }
   double j_rms() const { return j_rms_; }
@@ -157,14 +162,17 @@ void picard_multigrid(Fields& f, const RadiativeMedium& m, const RadiativeDiffus
       rhs[k] = m.emission[i] * dl2;
       x[k] = f.phi[i];
     });
-    MultigridSolver mg(diffusion_problem(in, a, D, FaceMean::Arithmetic));
+    DiffusionProblem problem = diffusion_problem(in, a, D, FaceMean::Arithmetic);
+    if (m.marshak)
+      for (std::size_t k = 0; k < D.size(); ++k) problem.boundary[k] *= f.wall(D[k]) / D[k];
+    MultigridSolver mg(problem);
     mg.apply(x, ax);
     for (std::size_t k = 0; k < rhs.size(); ++k) rhs[k] -= ax[k];
     // the outer layer's fluence enters through the faces towards it (conductance D of the node)
     f.for_interior([&](int xx, int y, int z, std::size_t i) {
       const int walls[6][3] = {{xx - 1, y, z}, {xx + 1, y, z}, {xx, y - 1, z}, {xx, y + 1, z}, {xx, y, z - 1}, {xx, y, z + 1}};
       for (const auto& w : walls)
-        if (d.is_boundary(w[0], w[1], w[2])) rhs[interior(xx, y, z)] += f.D[i] * f.phi[d.index(w[0], w[1], w[2])];
+        if (d.is_boundary(w[0], w[1], w[2])) rhs[interior(xx, y, z)] += f.wall(f.D[i]) * f.phi[d.index(w[0], w[1], w[2])];
     });
     const DiffusionSolveStats st = mg.solve(rhs, delta, std::min(0.1, 0.1 * out.residual), 200);
     out.linear_iterations += st.iterations;

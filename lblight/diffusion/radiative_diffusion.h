@@ -28,6 +28,9 @@ struct RadiativeMedium {
   // there, as [Koerner2014] does. An analytic solution there tests the discretisation alone
   // (its Fig. 5(a)).
   std::vector<double> boundary;
+  // Vacuum by Marshak's condition instead: the flux leaving through the medium's surface, half a
+  // voxel beyond the last node, is phi / 2 there (no light comes back in); ignores `boundary`.
+  bool marshak = false;
 };
 
 struct RadiativeDiffusionOptions {

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lblight/core/run_context.h"
+#include "lblight/reference/diffusion_solution.h"
 #include "lblight/reference/montecarlo.h"
 #include "lblight/solve/bake.h"
 #include "lblight/solve/plan.h"
@@ -24,5 +25,11 @@ nlohmann::json reference_json(const MonteCarloOptions& options);
 nlohmann::json run_truth(const BakePlan& plan, const MonteCarloOptions& options, const std::filesystem::path& target,
                          const std::string& command_line, BakeObserver& observer, const RunContext& ctx = {},
                          double seconds_before = 0);
+
+// The same layout from the diffusion solvers (reference/diffusion_solution.h), without standard
+// errors: `lblight truth --method cda|fld`.
+nlohmann::json run_diffusion(const BakePlan& plan, const DiffusionRunOptions& options,
+                             const std::filesystem::path& target, const std::string& command_line,
+                             BakeObserver& observer, const RunContext& ctx = {}, double seconds_before = 0);
 
 }  // namespace lblight

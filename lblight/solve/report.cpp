@@ -20,7 +20,9 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // The model reduced to one solution in one channel.
-ModelPlan single(const ModelPlan& mp, const SolutionPlan& sol, int distinct_channel) {
+}  // namespace
+
+ModelPlan single_solution_plan(const ModelPlan& mp, const SolutionPlan& sol, int distinct_channel) {
   ModelPlan sub = mp;
   sub.solutions = {sol};
   sub.solutions[0].derived = false;  // the report solves every solution it studies
@@ -28,6 +30,8 @@ ModelPlan single(const ModelPlan& mp, const SolutionPlan& sol, int distinct_chan
   sub.channel_of = {0, 0, 0};
   return sub;
 }
+
+namespace {
 
 // float64 on the CPU: BiCGStab to a tiny residual, then plain checks until the estimate is below
 // the reference tolerance. Totals in double (from the raw state).
@@ -128,6 +132,8 @@ void summarise(ReportCurve& c, double tolerance) {
   }
 }
 
+}  // namespace
+
 int slowest_channel(const ModelPlan& mp) {
   int best = 0;
   double albedo = -1;
@@ -141,8 +147,6 @@ int slowest_channel(const ModelPlan& mp) {
   }
   return best;
 }
-
-}  // namespace
 
 Report make_report(const BakePlan& plan, const Backend& backend, const Backend& reference_backend,
                    const ReportOptions& opt, const RunContext& ctx) {
@@ -163,7 +167,7 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
         chosen.push_back(&s);
     if (chosen.empty()) throw_invalid("model '" + mp.spec->name + "' bakes none of the solutions chosen for the report");
     for (const SolutionPlan* sol : chosen) {
-      ModelPlan sub = single(mp, *sol, distinct);
+      ModelPlan sub = single_solution_plan(mp, *sol, distinct);
       ReportReference ref{mp.spec->name, sol->grid_name, kChannelNames[colour]};
       ctx.report("model '" + mp.spec->name + "' " + sol->grid_name + " (" + kChannelNames[colour] +
           "): float64 reference on the CPU");

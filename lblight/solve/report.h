@@ -57,6 +57,11 @@ struct Report {
   std::vector<ReportCurve> curves;
 };
 
+// One solution of `mp` in one distinct channel, solved (never derived): what a report studies.
+ModelPlan single_solution_plan(const ModelPlan& mp, const SolutionPlan& sol, int distinct_channel);
+// The colour channel with the highest albedo: the slowest to converge.
+int slowest_channel(const ModelPlan& mp);
+
 // `backend` runs the curves; `reference_backend` (float64, i.e. the CPU) computes the reference.
 // Each reference and run is announced through ctx.progress; Error(Cancelled) once ctx.cancel is set.
 Report make_report(const BakePlan& plan, const Backend& backend, const Backend& reference_backend,

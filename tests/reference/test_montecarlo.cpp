@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "lblight/reference/diffusion_solution.h"
 #include "lblight/reference/montecarlo.h"
 
 using namespace lblight;
@@ -213,4 +214,24 @@ TEST_CASE("Monte Carlo: it stops at the target error, and its error shrinks as 1
   // Four times the photons halve the error (within the noise of the error itself).
   const std::size_t q = seen.size() / 4;
   REQUIRE(seen.back().second / seen[q - 1].second == Approx(std::sqrt(seen[q - 1].first / seen.back().first)).epsilon(0.25));
+}
+
+TEST_CASE("Ray-marched uncollided light: the incident fluence on an empty lattice, exp(-tau) through an absorber",
+          "[truth]") {
+  const Dims d{9, 9, 12};
+  LatticeGeometry empty = filled_lattice(d.nx, d.ny, d.nz, 0.0f);
+  const ChannelOptics optics{OpticalParams{0.3, 0.0, 0.0}, OpticalParams{0.3, 0.0, 0.0}};
+  for (int index : {0, 6, 9}) {
+    const std::vector<double> phi = uncollided_fluence(empty, optics, base_solution_light(index));
+    const double want = index == 0 ? 18.0 : 1.0;
+    for (double v : phi) CHECK(v == Approx(want).epsilon(1e-12));
+  }
+  // density 1 inside: a beam down -z (B06) reaches the centre of node z through the nz - 2 - z
+  // voxels above it and half of its own
+  const LatticeGeometry full = filled_lattice(d.nx, d.ny, d.nz, 1.0f);
+  const std::vector<double> phi = uncollided_fluence(full, optics, base_solution_light(6));
+  for (int z = 1; z < d.nz - 1; ++z) {
+    const double tau = 0.3 * ((d.nz - 2 - z) + 0.5);
+    CHECK(phi[d.index(4, 4, z)] == Approx(std::exp(-tau)).epsilon(1e-9));
+  }
 }
