@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <sstream>
 
 #include "apps/lblight/cli_support.h"
@@ -137,6 +138,21 @@ int run_validate(const ValidateArgs& args) {
     m["fits_available_memory"] = cost.fits;
     m["estimated_seconds"] = seconds;
     out["models"].push_back(m);
+  }
+  if (!scene.forest.empty()) {
+    // every instance is generated here, so a generator that cannot place its count fails validate
+    const std::vector<ForestInstance> all = forest_instances(scene.forest, scene.file.string());
+    std::map<std::string, int> per_model;
+    for (const ForestInstance& i : all) ++per_model[i.model];
+    text << "forest: " << all.size() << " instance(s) (" << scene.forest.instances.size() << " listed, "
+         << all.size() - scene.forest.instances.size() << " generated):";
+    nlohmann::json f = {{"instances", all.size()}, {"listed", scene.forest.instances.size()}};
+    for (const auto& [name, n] : per_model) {
+      text << " " << name << " x " << n;
+      f["per_model"][name] = n;
+    }
+    text << "\n  (bake solves each model once; the coarse forest grid and relighting are not there yet)\n";
+    out["forest"] = f;
   }
   out["warnings"] = plan.warnings;
   out["estimated_seconds"] = total_seconds;

@@ -25,13 +25,6 @@ bool* calibration_switch(LbModel& m, int k) {
   return s[k];
 }
 
-namespace {
-double cos_between(int i, int j) {
-  const int dot = cx(i) * cx(j) + cy(i) * cy(j) + cz(i) * cz(j);
-  return dot / std::sqrt(static_cast<double>(length_sq(i) * length_sq(j)));
-}
-}  // namespace
-
 double discrete_mean_cosine(double g, int j) {
   double z = 0, m = 0;  // Z_j of [Geist2010] eq. (8) once, not once per i as normalized_phase does
   for (int i = 1; i < kQ; ++i) z += weight(i) * hg_phase(g, i, j);

@@ -8,12 +8,12 @@ namespace lblight {
 
 using namespace d3q19;
 
-namespace {
-// n_i . n_j from the integer directions.
 double cos_between(int i, int j) {
   const int dot = cx(i) * cx(j) + cy(i) * cy(j) + cz(i) * cz(j);
   return dot / std::sqrt(static_cast<double>(length_sq(i) * length_sq(j)));
 }
+
+namespace {
 bool same_direction(int i, int j) { return cx(i) == cx(j) && cy(i) == cy(j) && cz(i) == cz(j); }
 bool opposite_direction(int i, int j) { return cx(i) == -cx(j) && cy(i) == -cy(j) && cz(i) == -cz(j); }
 

@@ -21,6 +21,8 @@ using OmegaMatrix = std::array<double, d3q19::kQ * d3q19::kQ>;
 // Discrete Henyey-Greenstein value p_ij(g) of eq. (9) for moving directions i, j >= 1.
 // |g| = 1 is the limit: 1 where n_i . n_j = sign(g), else 0 (never evaluated as 0/0).
 double hg_phase(double g, int i, int j);
+// n_i . n_j of two moving directions.
+double cos_between(int i, int j);
 
 // Normalised phase pn_ij(g) of eq. (8); for every j, sum_i w_i pn_ij = 1.
 double normalized_phase(double g, int i, int j);

@@ -18,7 +18,8 @@ struct DiffusionRunOptions {
   FluxLimiter limiter = FluxLimiter::LevermorePomraning;
   DiffusionSolver solver = DiffusionSolver::Multigrid;
   double tolerance = 1e-6;
-  bool marshak = true;  // vacuum by Marshak's condition; false: phi = 0 beyond the lattice ([Koerner2014])
+  bool marshak = true;
+  bool delta_m = true;  // forward peaks g^2 stay in the uncollided beam (diffusion_solution.cpp)  // vacuum by Marshak's condition; false: phi = 0 beyond the lattice ([Koerner2014])
 };
 
 // The fluence of light that has not scattered, per lattice node (boundary nodes: the empty-lattice

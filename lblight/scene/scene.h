@@ -15,6 +15,7 @@
 #include "lblight/core/precision.h"
 #include "lblight/lattice/lb_model.h"
 #include "lblight/lattice/sun.h"
+#include "lblight/scene/forest.h"
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/scene/material.h"
 
@@ -121,6 +122,7 @@ struct Scene {
   LightingSpec lighting;
   SolverSpec solver;
   OutputSpec output;
+  ForestSpec forest;           // empty unless the scene has a "forest" section
   std::string hash;            // "fnv1a64:<hex>" of the canonical JSON
 };
 

@@ -440,7 +440,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   const nlohmann::json j = JsonReader::parse_strict(text, file.string());
   const JsonReader root(j, "", file.string());
   root.expect_object();
-  root.only_keys({"version", "name", "models", "lighting", "solver", "output", "$schema", "comment"});
+  root.only_keys({"version", "name", "models", "lighting", "solver", "output", "forest", "$schema", "comment"});
   Scene scene;
   scene.file = file;
   scene.dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
@@ -462,6 +462,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   else scene.lighting.solutions = parse_solution_list("all", root.location());  // "auto" with no constraints
   if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
   if (root.has("output")) scene.output = read_output(root.child("output"));
+  if (root.has("forest")) scene.forest = read_forest(root.child("forest"), names, scene.lighting.sun_constraints.rotation);
   scene.hash = "fnv1a64:" + hex64(fnv1a64(j.dump()));
   return scene;
 }

@@ -1,0 +1,179 @@
+#include "lblight/scene/forest.h"
+
+#include <cmath>
+#include <unordered_map>
+
+#include "lblight/core/error.h"
+
+namespace lblight {
+namespace {
+
+bool yawed(double degrees) {
+  const double r = std::fmod(std::fabs(degrees), 360.0);
+  return r > 1e-9 && 360.0 - r > 1e-9;
+}
+
+void check_yaw(const JsonReader& r, const std::string& key, double degrees, InstanceRotation rotation) {
+  if (rotation == InstanceRotation::None && yawed(degrees))
+    r.fail("a yaw of " + JsonReader::describe(degrees) +
+               " degrees rotates the instance, but lighting.instance_rotation is \"none\": the bake leaves out "
+               "the base solutions a rotated copy needs; set instance_rotation to \"yaw\" or use yaw 0",
+           key);
+}
+
+std::array<double, 2> range(const JsonReader& r, const std::string& key, std::array<double, 2> fallback, double lo,
+                            double hi, const std::string& allowed) {
+  if (!r.has(key)) return fallback;
+  const JsonReader v = r.child(key);
+  if (!v.json().is_array() || v.json().size() != 2) v.fail("expected [low, high], found " + JsonReader::describe(v.json()));
+  const std::array<double, 2> out{v.element(0).as_number(lo, hi, allowed), v.element(1).as_number(lo, hi, allowed)};
+  if (out[1] < out[0]) v.fail("high must be >= low");
+  return out;
+}
+
+std::string model_name(const JsonReader& r, const std::string& key, const std::set<std::string>& models) {
+  const std::string name = r.string(key);
+  if (!models.count(name)) {
+    std::string list;
+    for (const std::string& m : models) list += (list.empty() ? "" : ", ") + m;
+    r.fail("unknown model '" + name + "'; the scene's models: " + list, key);
+  }
+  return name;
+}
+
+// SplitMix64: one stream per generator seed.
+struct Random {
+  std::uint64_t state;
+  std::uint64_t next() {
+    std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
+};
+
+}  // namespace
+
+ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models, InstanceRotation rotation) {
+  r.expect_object();
+  r.only_keys({"instances", "generator", "comment"});
+  ForestSpec f;
+  if (r.has("instances")) {
+    const JsonReader list = r.child("instances");
+    if (!list.json().is_array()) list.fail("expected a list of instances");
+    for (std::size_t i = 0; i < list.json().size(); ++i) {
+      const JsonReader e = list.element(i);
+      e.expect_object();
+      e.only_keys({"model", "position", "yaw_degrees", "scale"});
+      ForestInstance inst;
+      inst.model = model_name(e, "model", models);
+      const JsonReader p = e.child("position");
+      if (!p.json().is_array() || p.json().size() != 3) p.fail("expected [x, y, z], found " + JsonReader::describe(p.json()));
+      for (int k = 0; k < 3; ++k) inst.position[k] = p.element(k).as_number(-1e9, 1e9, "-1e9..1e9 world units");
+      inst.yaw_degrees = e.number_or("yaw_degrees", 0.0, -3600.0, 3600.0, "-3600..3600 degrees");
+      check_yaw(e, "yaw_degrees", inst.yaw_degrees, rotation);
+      inst.scale = e.number_or("scale", 1.0, 1e-3, 1e3, "1e-3..1e3");
+      f.instances.push_back(inst);
+      f.instance_paths.push_back(e.path());
+    }
+  }
+  if (r.has("generator")) {
+    const JsonReader g = r.child("generator");
+    g.expect_object();
+    g.only_keys({"area", "height", "count", "density", "min_spacing", "yaw_degrees", "scale", "models", "seed"});
+    ForestGenerator gen;
+    gen.json_path = g.path();
+    const JsonReader a = g.child("area");
+    if (!a.json().is_array() || a.json().size() != 4)
+      a.fail("expected [x_min, y_min, x_max, y_max], found " + JsonReader::describe(a.json()));
+    for (int k = 0; k < 4; ++k) gen.area[k] = a.element(k).as_number(-1e9, 1e9, "-1e9..1e9 world units");
+    if (!(gen.area[2] > gen.area[0] && gen.area[3] > gen.area[1])) a.fail("x_max must be > x_min and y_max > y_min");
+    gen.height = g.number_or("height", 0.0, -1e9, 1e9, "-1e9..1e9 world units");
+    const double area = (gen.area[2] - gen.area[0]) * (gen.area[3] - gen.area[1]);
+    if (g.has("count") == g.has("density")) g.fail("give either count or density (instances per unit area)");
+    if (g.has("count")) {
+      gen.count = static_cast<int>(g.integer_or("count", 0, 1, kMaxForestInstances));
+    } else {
+      const double density = g.number("density", 1e-12, 1e9, "> 0 instances per unit area");
+      const double n = std::round(density * area);
+      if (n < 1 || n > kMaxForestInstances)
+        g.fail("density x area gives " + JsonReader::describe(n) + " instances; allowed: 1.." +
+                   std::to_string(kMaxForestInstances),
+               "density");
+      gen.count = static_cast<int>(n);
+    }
+    gen.min_spacing = g.number_or("min_spacing", 0.0, 0.0, 1e9, ">= 0 world units");
+    gen.yaw_degrees = range(g, "yaw_degrees", {0, 0}, -3600.0, 3600.0, "-3600..3600 degrees");
+    if (rotation == InstanceRotation::None && (yawed(gen.yaw_degrees[0]) || gen.yaw_degrees[0] != gen.yaw_degrees[1]))
+      g.fail("yaw_degrees " + JsonReader::describe(nlohmann::json(gen.yaw_degrees)) +
+                 " rotates the instances, but lighting.instance_rotation is \"none\": the bake leaves out the base "
+                 "solutions rotated copies need; set instance_rotation to \"yaw\" or use [0, 0]",
+             "yaw_degrees");
+    gen.scale = range(g, "scale", {1, 1}, 1e-3, 1e3, "1e-3..1e3");
+    gen.seed = static_cast<std::uint64_t>(g.integer_or("seed", 1, 0, (1ll << 62)));
+    const JsonReader ms = g.child("models");
+    if (!ms.json().is_array() || ms.json().empty()) ms.fail("expected a non-empty list of {\"model\": name, \"weight\": w}");
+    for (std::size_t i = 0; i < ms.json().size(); ++i) {
+      const JsonReader e = ms.element(i);
+      e.expect_object();
+      e.only_keys({"model", "weight"});
+      gen.models.push_back({model_name(e, "model", models), e.number_or("weight", 1.0, 1e-12, 1e12, "> 0")});
+    }
+    f.generator = gen;
+  }
+  if (f.empty()) r.fail("a forest needs instances or a generator");
+  return f;
+}
+
+std::vector<ForestInstance> forest_instances(const ForestSpec& f, const std::string& file) {
+  std::vector<ForestInstance> out = f.instances;
+  if (!f.generator) return out;
+  const ForestGenerator& g = *f.generator;
+  double total_weight = 0;
+  for (const auto& m : g.models) total_weight += m.second;
+  Random rng{g.seed};
+  // Dart throwing with a hash of cells min_spacing wide: each candidate is checked against the
+  // instances in its and the neighbouring cells only.
+  const double cell = g.min_spacing > 0 ? g.min_spacing : 1.0;
+  std::unordered_map<long long, std::vector<std::size_t>> cells;
+  auto key = [&](long long cx, long long cy) { return cx * 1000003LL + cy; };
+  const std::size_t first = out.size();
+  const long long max_tries = 100LL * g.count + 1000;
+  long long tries = 0;
+  while (static_cast<int>(out.size() - first) < g.count) {
+    if (++tries > max_tries)
+      throw_invalid("the forest generator placed only " + std::to_string(out.size() - first) + " of " +
+                        std::to_string(g.count) + " instances " + JsonReader::describe(g.min_spacing) +
+                        " apart in its area; lower count/density or min_spacing, or enlarge the area",
+                    {file, g.json_path, {}});
+    const double x = g.area[0] + rng.uniform() * (g.area[2] - g.area[0]);
+    const double y = g.area[1] + rng.uniform() * (g.area[3] - g.area[1]);
+    const double yaw = g.yaw_degrees[0] + rng.uniform() * (g.yaw_degrees[1] - g.yaw_degrees[0]);
+    const double scale = g.scale[0] + rng.uniform() * (g.scale[1] - g.scale[0]);
+    double pick = rng.uniform() * total_weight;
+    std::size_t m = 0;
+    while (m + 1 < g.models.size() && pick >= g.models[m].second) pick -= g.models[m++].second;
+    const long long cx = static_cast<long long>(std::floor(x / cell)), cy = static_cast<long long>(std::floor(y / cell));
+    bool clear = true;
+    if (g.min_spacing > 0)
+      for (long long dx = -1; dx <= 1 && clear; ++dx)
+        for (long long dy = -1; dy <= 1 && clear; ++dy) {
+          const auto it = cells.find(key(cx + dx, cy + dy));
+          if (it == cells.end()) continue;
+          for (std::size_t k : it->second) {
+            const double ex = out[k].position[0] - x, ey = out[k].position[1] - y;
+            if (ex * ex + ey * ey < g.min_spacing * g.min_spacing) {
+              clear = false;
+              break;
+            }
+          }
+        }
+    if (!clear) continue;
+    cells[key(cx, cy)].push_back(out.size());
+    out.push_back({g.models[m].first, {x, y, g.height}, yaw, scale});
+  }
+  return out;
+}
+
+}  // namespace lblight
