@@ -27,6 +27,10 @@ class Fields {
       throw std::invalid_argument("solve_radiative_diffusion: one sigma_t, albedo and emission per node");
     if (d_.nx < 3 || d_.ny < 3 || d_.nz < 3) throw std::invalid_argument("solve_radiative_diffusion: grid below 3^3");
     const double floor = o.sigma_floor_per_extent / (m.voxel * d_.longest());
+    // A diffusion length beyond the grid's extent changes nothing in it (phi is flat on that
+    // scale either way) but makes the coefficients of near-empty voxels 1e4 times those of the
+    // medium, which the multigrid solves badly (a void-heavy cloud: 35 s instead of 2 s).
+    max_d_ = m.voxel * d_.longest();
     sigma_.resize(n);
     for (std::size_t i = 0; i < n; ++i) sigma_[i] = std::max(m.sigma_t[i], floor);
     double j2 = 0;
@@ -51,14 +55,14 @@ class Fields {
 
   // D_p = F(R_p) / sigma_p with R from the central-difference gradient (eqs. 33-35).
   double coefficient(int x, int y, int z, std::size_t i) const {
-    if (o_.limiter == FluxLimiter::Classical) return 1.0 / (3.0 * sigma_[i]);
+    if (o_.limiter == FluxLimiter::Classical) return std::min(1.0 / (3.0 * sigma_[i]), max_d_);
     const double h = 2.0 * m_.voxel;
     const double gx = (phi[d_.index(x + 1, y, z)] - phi[d_.index(x - 1, y, z)]) / h;
     const double gy = (phi[d_.index(x, y + 1, z)] - phi[d_.index(x, y - 1, z)]) / h;
     const double gz = (phi[d_.index(x, y, z + 1)] - phi[d_.index(x, y, z - 1)]) / h;
     const double floor = kEpsilon * j_rms_;
     const double knudsen = std::max(std::sqrt(gx * gx + gy * gy + gz * gz), floor) / std::max(sigma_[i] * phi[i], floor);
-    return levermore_pomraning(knudsen) / sigma_[i];
+    return std::min(levermore_pomraning(knudsen) / sigma_[i], max_d_);
   }
 
   // Numerator and denominator of eq. (32) at interior node i; the outer layer keeps its phi and
@@ -108,7 +112,7 @@ class Fields {
   const RadiativeDiffusionOptions& o_;
   Dims d_;
   std::vector<double> sigma_;
-  double j_rms_ = 0;
+  double j_rms_ = 0, max_d_ = 0;
 };
 
 // [Koerner2014] Algorithm 1: red-black Gauss-Seidel with over-relaxation, D updated at each
