@@ -1,0 +1,71 @@
+// lblight relight: a baked model's light for a sun from its base solutions equals a static bake of
+// that sun (float precision), and a sun the bake cannot serve is refused by name.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "lblight/io/vdb_io.h"
+#include "tests/support/test_support.h"
+
+using namespace lblight;
+using namespace lblight::test;
+
+namespace {
+
+std::string plant_scene(const std::string& lighting) {
+  return R"({"version": 1, "models": [{"name": "tree", "density": {"type": "procedural", "shape": "plant",
+             "resolution": 12, "seed": 4}, "material": "leaf", "wood_material": "bark"}],
+             "lighting": )" + lighting + R"(, "solver": {"iterations": "auto", "tolerance": 1e-6}})";
+}
+
+}  // namespace
+
+TEST_CASE("relight of the base solutions equals the static bake of that sun, on the medium", "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "base.json", plant_scene(R"({"mode": "base", "solutions": "all"})"));
+  write_text(tmp / "static.json",
+             plant_scene(R"({"mode": "static", "sun": {"elevation": 35, "azimuth": 120}, "intensity": 1.7, "ambient": 0.3})"));
+  REQUIRE(run_cli("bake base.json -o base --backend cpu -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("bake static.json -o static --backend cpu -q", tmp.path()).exit_code == 0);
+  const CliResult r = run_cli(
+      "relight base --sun-elevation 35 --sun-azimuth 120 --intensity 1.7 --ambient 0.3 -o relit.vdb", tmp.path());
+  INFO(r.out << r.err);
+  REQUIRE(r.exit_code == 0);
+  const DenseGridIn relit = read_vdb_grid_dense(tmp / "relit.vdb", "light");
+  const DenseGridIn stat = read_vdb_grid_dense(tmp / "static" / "tree.vdb", "light");
+  const DenseGridIn density = read_vdb_grid_dense(tmp / "relit.vdb", "density");
+  REQUIRE(relit.frame.dims == stat.frame.dims);
+  const Dims& d = relit.frame.dims;
+  double worst = 0, peak = 0;
+  int compared = 0, boundary_values = 0;
+  for (int z = 0; z < d.nz; ++z)
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x) {
+        const std::size_t i = d.index(x, y, z);
+        for (int c = 0; c < 3; ++c) {
+          if (d.is_boundary(x, y, z)) {
+            boundary_values += relit.values[c][i] != 0.0f;  // source values never appear
+            continue;
+          }
+          if (density.values[0][i] <= 0.0f) continue;
+          worst = std::max(worst, std::fabs(static_cast<double>(relit.values[c][i]) - stat.values[c][i]));
+          peak = std::max(peak, static_cast<double>(stat.values[c][i]));
+          ++compared;
+        }
+      }
+  CHECK(compared > 100);
+  CHECK(boundary_values == 0);
+  CHECK(worst <= 2e-5 * peak);  // two runs to 1e-6 each, stored in float32
+}
+
+TEST_CASE("relight names the base solution a sun needs when the bake left it out", "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "sky.json", plant_scene(R"({"mode": "base", "solutions": "auto",
+             "sun_range": {"min_elevation": 30, "max_elevation": 90}})"));
+  REQUIRE(run_cli("bake sky.json -o sky --backend cpu -q --tolerance 1e-3", tmp.path()).exit_code == 0);
+  CHECK(run_cli("relight sky --sun-elevation 60 -o ok.vdb", tmp.path()).exit_code == 0);
+  const CliResult r = run_cli("relight sky --sun-elevation -40 -o below.vdb", tmp.path());
+  CHECK(r.exit_code == 2);
+  CHECK(r.err.find("left out") != std::string::npos);
+  CHECK(!std::filesystem::exists(tmp.path() / "below.vdb"));
+}
