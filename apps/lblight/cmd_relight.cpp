@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 
@@ -13,7 +14,9 @@
 #include "lblight/core/version.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
+#include "lblight/pipeline/relight_forest.h"
 
 namespace fs = std::filesystem;
 
@@ -23,15 +26,85 @@ namespace {
 struct RelightArgs {
   std::string input, model, output;
   double elevation = 45.0, azimuth = 0.0, intensity = 1.0, ambient = 0.0;
+  bool local = false;
+  double voxel_size = 0;
+  long long instance = -1;
 };
 
+bool holds_forest(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec) || !fs::exists(dir / "manifest.json", ec)) return false;
+  return read_manifest(dir).contains("forest");
+}
+
+// The whole forest (or one instance of it) into one world-space volume, and a JSON record of the
+// weights and coarse factors each instance used next to it.
+int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
+  ForestRelightRequest req;
+  req.sun.toward_sun = toward_sun_from_angles(a.elevation, a.azimuth);
+  req.sun.intensity = a.intensity;
+  req.sun.ambient = a.ambient;
+  req.coarse = !a.local;
+  req.voxel_size = a.voxel_size;
+  if (a.instance >= 0) req.instance = static_cast<std::size_t>(a.instance);
+  RunContext ctx;
+  ctx.cancel = &g_interrupted;
+  const fs::path out = a.output.empty() ? fs::path("forest-light.vdb") : fs::path(a.output);
+  const nlohmann::json meta = {{"lblight_version", kVersion},
+                               {"lblight_command", global.command_line},
+                               {"lblight_source", a.input},
+                               {"lblight_sun_elevation", a.elevation},
+                               {"lblight_sun_azimuth", a.azimuth},
+                               {"lblight_intensity", a.intensity},
+                               {"lblight_ambient", a.ambient},
+                               {"lblight_coarse_factors", req.coarse}};
+  const ForestRelightResult r = relight_forest(a.input, req, out, meta, ctx);
+  nlohmann::json rec = {{"source", a.input},
+                        {"output", out.string()},
+                        {"sun", {{"elevation", a.elevation}, {"azimuth", a.azimuth}, {"intensity", a.intensity}}},
+                        {"ambient", a.ambient},
+                        {"coarse_factors", r.coarse},
+                        {"voxel_size", r.voxel_size},
+                        {"active_voxels", r.active_voxels},
+                        {"seconds", {{"read", r.read_seconds}, {"relight", r.relight_seconds}, {"write", r.write_seconds}}},
+                        {"instance_columns", {"instance", "model", "weights [[solution, weight]...] in the model's frame",
+                                              "mean coarse factor [r, g, b]", "voxels"}}};
+  nlohmann::json fw = nlohmann::json::array();
+  for (const auto& [solution, weight] : r.forest_weights) fw.push_back({solution, weight});
+  rec["forest_weights"] = fw;
+  nlohmann::json rows = nlohmann::json::array();
+  for (std::size_t k = 0; k < r.per_instance.size(); ++k) {
+    const InstanceRelight& in = r.per_instance[k];
+    nlohmann::json w = nlohmann::json::array();
+    for (const auto& [solution, weight] : in.weights) w.push_back({solution, weight});
+    rows.push_back({req.instance ? *req.instance : k, in.model, w, in.mean_factor, in.voxels});
+  }
+  rec["instances"] = rows;
+  fs::path rec_file = out;
+  rec_file.replace_extension(".json");
+  write_file_atomically(rec_file, rec.dump(1) + "\n");
+  std::cout << "relit " << r.instances << " instance(s) of " << a.input << " for a sun at elevation " << a.elevation
+            << ", azimuth " << a.azimuth << (r.coarse ? " with coarse forest factors" : " (local light only)") << ": "
+            << r.active_voxels << " active voxels of " << r.voxel_size << " world units in " << r.relight_seconds
+            << " s (+ " << r.read_seconds << " s reading, " << r.write_seconds << " s writing): " << out.string()
+            << ", weights and factors in " << rec_file.string() << "\n";
+  return 0;
+}
+
 int run_relight(const RelightArgs& a, const GlobalOptions& global) {
+  if (a.model.empty() && holds_forest(a.input)) return run_relight_forest(a, global);
+  if (a.local || a.voxel_size > 0 || a.instance >= 0)
+    throw_invalid("--local, --voxel-size and --instance relight a forest; '" + a.input +
+                  "' is " + (a.model.empty() ? "not a forest bake" : "relit as one model (--model)"));
   fs::path vdb = a.input;
   if (fs::is_directory(vdb)) {
     if (a.model.empty()) {
       std::vector<std::string> names;
       for (const auto& e : fs::directory_iterator(vdb))
         if (e.path().extension() == ".vdb") names.push_back(e.path().stem().string());
+      names.erase(std::remove_if(names.begin(), names.end(),
+                                 [](const std::string& n) { return n.rfind("forest", 0) == 0 && (n == "forest" || n.rfind("forest.", 0) == 0); }),
+                  names.end());
       if (names.size() != 1)
         throw_invalid("bake '" + a.input + "' holds " + std::to_string(names.size()) +
                       " model .vdb files; choose one with --model");
@@ -83,10 +156,13 @@ Command add_relight_command(CLI::App& app, const GlobalOptions& global) {
   auto args = std::make_shared<RelightArgs>();
   CLI::App* cmd = app.add_subcommand(
       "relight",
-      "One baked model's light for a sun, assembled from its base solutions (intensity x the three lattice "
-      "directions around the sun, weighted as [Steele2009] sec. 4.2, + ambient x B00): the same light a static bake "
-      "of that sun gives. Writes a .vdb with a vec3 'light' grid (active on the occupied nodes and their neighbours) "
-      "and the 'density' grid. Names the base solution a sun needs when the bake left it out.");
+      "A bake's light for a sun, assembled from its base solutions (intensity x the three lattice directions "
+      "around the sun, weighted as [Steele2009] sec. 4.2, + ambient x B00): the same light a static bake of that sun "
+      "gives. One model (--model, or a bake of one model): a .vdb with a vec3 'light' grid (active on the occupied "
+      "nodes and their neighbours) and 'density'. A forest bake: every instance (the sun turned into its frame) "
+      "scaled by the coarse forest grid's shading ([Steele2009] sec. 4.3; --local: without), resampled into one "
+      "world-space volume 'light' + 'density' (+ 'brown'), and the weights and factors used in <output>.json "
+      "(docs/forest.md). Names the base solution a sun needs when the bake left it out.");
   cmd->add_option("bake", args->input, "Bake output folder (or one model's .vdb)")->required();
   cmd->add_option("--model", args->model, "Model to relight (needed when the bake holds several)")->check(kNonEmpty);
   cmd->add_option("--sun-elevation", args->elevation, "Degrees above the horizon (90 = zenith)")
@@ -97,7 +173,13 @@ Command add_relight_command(CLI::App& app, const GlobalOptions& global) {
       ->capture_default_str();
   cmd->add_option("--intensity", args->intensity, "Sun intensity s")->check(finite_range(0.0, 1e6))->capture_default_str();
   cmd->add_option("--ambient", args->ambient, "Ambient level a (x B00)")->check(finite_range(0.0, 1e6))->capture_default_str();
-  cmd->add_option("-o,--output", args->output, "Output .vdb (default: <model>-light.vdb here)")->check(kNonEmpty);
+  cmd->add_option("-o,--output", args->output, "Output .vdb (default: <model>-light.vdb, or forest-light.vdb, here)")
+      ->check(kNonEmpty);
+  cmd->add_flag("--local", args->local, "Forest: each instance's own light only, without the coarse forest factors");
+  cmd->add_option("--voxel-size", args->voxel_size, "Forest: world voxel edge (default: the finest instance voxel)")
+      ->check(finite_range(1e-4, 1e6));
+  cmd->add_option("--instance", args->instance, "Forest: relight only this instance (0-based, the manifest's order)")
+      ->check(CLI::Range(0LL, 100000000LL));
   return {cmd, [args, &global] { return run_relight(*args, global); }};
 }
 

@@ -139,9 +139,8 @@ int run_validate(const ValidateArgs& args) {
     m["estimated_seconds"] = seconds;
     out["models"].push_back(m);
   }
-  if (!scene.forest.empty()) {
-    // every instance is generated here, so a generator that cannot place its count fails validate
-    const std::vector<ForestInstance> all = forest_instances(scene.forest, scene.file.string());
+  if (plan.forest) {
+    const std::vector<ForestInstance>& all = plan.forest->instances;
     std::map<std::string, int> per_model;
     for (const ForestInstance& i : all) ++per_model[i.model];
     text << "forest: " << all.size() << " instance(s) (" << scene.forest.instances.size() << " listed, "
@@ -151,7 +150,15 @@ int run_validate(const ValidateArgs& args) {
       text << " " << name << " x " << n;
       f["per_model"][name] = n;
     }
-    text << "\n  (bake solves each model once; the coarse forest grid and relighting are not there yet)\n";
+    if (plan.forest->coarse) {
+      text << "\n  coarse forest grid: cells of " << plan.forest->cell_size << " world units ("
+           << plan.forest->cell_size_note << "), solved as model 'forest' and each model alone as 'forest.alone.<model>'";
+      f["cell_size"] = plan.forest->cell_size;
+    } else {
+      text << "\n  no coarse forest grid (forest.coarse false): relighting uses each instance's own light only";
+    }
+    f["coarse"] = plan.forest->coarse;
+    text << "\n";
     out["forest"] = f;
   }
   out["warnings"] = plan.warnings;

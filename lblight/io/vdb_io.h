@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <bitset>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -36,6 +37,26 @@ struct DenseGridOut {
 // Writes the grids to `file` (which should be a staging path; see output_dir.h).
 void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,
                const nlohmann::json& file_metadata);
+
+// A sparse world-space volume in bricks of 8^3 voxels (OpenVDB's leaf size), for volumes too
+// large to hold densely (a whole forest's light). Voxel (x, y, z) of a brick, x fastest, is index
+// coordinate origin + (x, y, z); index coordinate (i, j, k) sits at voxel_size (i, j, k).
+inline constexpr int kBrickEdge = 8;
+inline constexpr int kBrickVoxels = kBrickEdge * kBrickEdge * kBrickEdge;
+struct VolumeBrick {
+  std::array<int, 3> origin{};                      // multiples of kBrickEdge
+  std::array<float, kBrickVoxels> density{};        // written as fog volume 'density' (active where > 0)
+  std::array<std::array<float, kBrickVoxels>, 3> light{};  // Vec3f 'light' (active where `active`)
+  std::array<float, kBrickVoxels> wood{};           // float 'brown': 1 where wood, active there
+  std::bitset<kBrickVoxels> active;
+};
+struct BrickVolumeOut {
+  double voxel_size = 1;
+  std::vector<const VolumeBrick*> bricks;  // distinct origins
+  bool with_wood = false;
+  nlohmann::json light_metadata = nlohmann::json::object(), density_metadata = nlohmann::json::object();
+};
+void write_brick_vdb(const std::filesystem::path& file, const BrickVolumeOut& volume, const nlohmann::json& file_metadata);
 
 // A grid read back densely over a frame (tests, compression): float grids fill channel 0.
 struct DenseGridIn {

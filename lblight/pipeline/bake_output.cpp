@@ -209,6 +209,8 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
 
   nlohmann::json model;
   model["name"] = mp.spec->name;
+  model["role"] = mp.role == PlanRole::Model ? "model" : mp.role == PlanRole::ForestCoarse ? "forest" : "forest_alone";
+  if (mp.role == PlanRole::ForestAlone) model["alone_model"] = mp.alone_model;
   model["file"] = write_grids ? nlohmann::json(file_name) : nlohmann::json(nullptr);
   model["source"] = mp.grid.description;
   model["lattice"] = lattice_json(mp);
@@ -283,6 +285,23 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   models_.push_back(model);
 }
 
+nlohmann::json forest_json(const ForestPlan& f) {
+  nlohmann::json j;
+  j["coarse"] = f.coarse;
+  if (f.coarse) {
+    j["cell_size"] = f.cell_size;
+    j["cell_size_note"] = f.cell_size_note;
+    j["coarse_file"] = std::string(kForestCoarseName) + ".vdb";
+  }
+  // The instance table: columns named once, one row per instance.
+  j["instance_columns"] = {"model", "x", "y", "z", "yaw_degrees", "scale"};
+  nlohmann::json rows = nlohmann::json::array();
+  for (const ForestInstance& in : f.instances)
+    rows.push_back({in.model, in.position[0], in.position[1], in.position[2], in.yaw_degrees, in.scale});
+  j["instances"] = std::move(rows);
+  return j;
+}
+
 nlohmann::json BakeOutput::commit(double total_seconds) {
   nlohmann::json m;
   m["lblight_version"] = kVersion;
@@ -296,6 +315,7 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
                   {"precision", to_string(plan_.precision)}};
   if (!info_.reference.is_null()) m["reference"] = info_.reference;
   m["models"] = models_;
+  if (plan_.forest) m["forest"] = forest_json(*plan_.forest);
   m["total_seconds"] = total_seconds;
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");
   dir_.commit();

@@ -69,6 +69,8 @@ class BakeOutput {
 nlohmann::json material_json(const Material& m);
 nlohmann::json lattice_json(const ModelPlan& model);
 nlohmann::json savings_json(const ModelPlan& model);  // what the plan leaves out
+// The manifest's "forest": cell size and the instance table (docs/forest.md).
+nlohmann::json forest_json(const ForestPlan& forest);
 std::array<double, 3> lattice_origin_world(const ModelPlan& model);
 
 }  // namespace lblight

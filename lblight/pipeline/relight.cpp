@@ -18,61 +18,109 @@ std::string grid_name(int solution) {
 
 }  // namespace
 
-RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest& req, const RunContext& ctx) {
+std::vector<std::pair<int, double>> relight_weights(const RelightRequest& req) {
   const Vec3d& t = req.toward_sun;
   const double len = std::sqrt(t.x * t.x + t.y * t.y + t.z * t.z);
   if (!(len > 0) || !std::isfinite(len)) throw_invalid("the sun direction must be a finite, non-zero vector");
   const SunWeights w = decompose_direction({-t.x / len, -t.y / len, -t.z / len});
-  RelitModel out;
+  std::vector<std::pair<int, double>> out;
   for (int k = 0; k < 3; ++k)
-    if (w.weight[k] > kNegligibleSunWeight && req.intensity != 0.0)
-      out.weights.push_back({w.direction[k], req.intensity * w.weight[k]});
-  if (req.ambient != 0.0) out.weights.push_back({0, req.ambient});
+    if (w.weight[k] > kNegligibleSunWeight && req.intensity != 0.0) out.push_back({w.direction[k], req.intensity * w.weight[k]});
+  if (req.ambient != 0.0) out.push_back({0, req.ambient});
+  return out;
+}
+
+BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::optional<std::set<int>>& wanted, const std::string& why,
+                             const RunContext& ctx)
+    : file_(vdb) {
   const nlohmann::json grids = inspect_vdb(vdb, ctx).at("grids");
-  auto has = [&](const std::string& name) {
-    for (const auto& g : grids)
-      if (g.at("name") == name) return true;
-    return false;
-  };
-  if (!has("density")) throw_invalid("no grid 'density': not an lblight bake", {vdb.string(), {}, {}});
-  for (const auto& [solution, weight] : out.weights)
-    if (!has(grid_name(solution)))
-      throw_invalid("this sun needs base solution " + grid_name(solution) + " (weight " + std::to_string(weight) +
-                        "), which the bake left out; bake it (lighting.solutions, or a sun_range / instance_rotation "
+  std::set<std::string> names;
+  for (const auto& g : grids) names.insert(g.at("name").get<std::string>());
+  if (!names.count("density")) throw_invalid("no grid 'density': not an lblight bake", {vdb.string(), {}, {}});
+  std::set<int> solutions = wanted.value_or(std::set<int>{});
+  if (!wanted)
+    for (int j = 0; j < 19; ++j)
+      if (names.count(grid_name(j))) solutions.insert(j);
+  for (int j : solutions)
+    if (!names.count(grid_name(j)))
+      throw_invalid(why + " needs base solution " + grid_name(j) +
+                        ", which the bake left out; bake it (lighting.solutions, or a sun_range / instance_rotation "
                         "that includes this sun)",
                     {vdb.string(), {}, {}});
   const DenseGridIn density = read_vdb_grid_dense(vdb, "density", ctx);
-  out.frame = density.frame;
-  out.density = density.values[0];
-  const std::size_t n = out.frame.dims.count();
-  for (auto& c : out.light) c.assign(n, 0.0f);
-  std::array<std::vector<double>, 3> sum;
-  for (auto& c : sum) c.assign(n, 0.0);
-  for (const auto& [solution, weight] : out.weights) {
-    const DenseGridIn b = read_vdb_grid_dense(vdb, grid_name(solution), ctx);
-    if (!(b.frame.dims == out.frame.dims) || b.frame.index_min != out.frame.index_min)
-      throw_invalid("grid " + grid_name(solution) + " does not cover the lattice box of grid 'density'",
-                    {vdb.string(), {}, {}});
-    for (int c = 0; c < 3; ++c) {
-      const std::vector<float>& v = b.values[c].empty() ? b.values[0] : b.values[c];
-      for (std::size_t i = 0; i < n; ++i) sum[c][i] += weight * v[i];
-    }
+  frame_ = density.frame;
+  density_ = density.values[0];
+  if (names.count("brown")) wood_ = read_vdb_grid_dense(vdb, "brown", ctx).values[0];
+  for (int j : solutions) {
+    DenseGridIn b = read_vdb_grid_dense(vdb, grid_name(j), ctx);
+    if (!(b.frame.dims == frame_.dims) || b.frame.index_min != frame_.index_min)
+      throw_invalid("grid " + grid_name(j) + " does not cover the lattice box of grid 'density'", {vdb.string(), {}, {}});
+    auto& g = grids_[j];
+    for (int c = 0; c < 3; ++c) g[c] = b.values[c].empty() ? b.values[0] : std::move(b.values[c]);
     ctx.check_cancelled();
   }
-  // Occupied nodes and their 26 neighbours (what a renderer interpolates between); the lattice's
-  // boundary layer holds the fixed source values, which are not light in the medium.
-  const Dims& d = out.frame.dims;
-  for (int z = 1; z < d.nz - 1; ++z)
-    for (int y = 1; y < d.ny - 1; ++y)
-      for (int x = 1; x < d.nx - 1; ++x) {
-        bool near = false;
-        for (int dz = -1; dz <= 1 && !near; ++dz)
-          for (int dy = -1; dy <= 1 && !near; ++dy)
-            for (int dx = -1; dx <= 1 && !near; ++dx) near = out.density[d.index(x + dx, y + dy, z + dz)] > 0.0f;
-        if (!near) continue;
-        const std::size_t i = d.index(x, y, z);
-        for (int c = 0; c < 3; ++c) out.light[c][i] = static_cast<float>(sum[c][i]);
-      }
+}
+
+void BaseSolutions::combine(const std::vector<std::pair<int, double>>& weights, std::array<std::vector<float>, 3>& out,
+                            const std::vector<std::size_t>* nodes) const {
+  std::vector<const std::array<std::vector<float>, 3>*> src;
+  for (const auto& [solution, weight] : weights) {
+    const auto it = grids_.find(solution);
+    if (it == grids_.end())
+      throw_invalid("relighting needs base solution " + grid_name(solution) + ", which was not read", {file_.string(), {}, {}});
+    src.push_back(&it->second);
+  }
+  auto one = [&](std::size_t i) {
+    for (int c = 0; c < 3; ++c) {
+      double s = 0;
+      for (std::size_t k = 0; k < src.size(); ++k) s += weights[k].second * (*src[k])[c][i];
+      out[c][i] = static_cast<float>(s);
+    }
+  };
+  if (nodes)
+    for (std::size_t i : *nodes) one(i);
+  else
+    for (std::size_t i = 0; i < frame_.dims.count(); ++i) one(i);
+}
+
+std::vector<std::uint8_t> near_medium(const Dims& d, const std::vector<float>& density, int rings) {
+  std::vector<std::uint8_t> mask(d.count(), 0);
+  for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = density[i] > 0.0f;
+  for (int r = 0; r < rings; ++r) {
+    std::vector<std::uint8_t> grown(mask.size(), 0);
+    for (int z = 1; z < d.nz - 1; ++z)
+      for (int y = 1; y < d.ny - 1; ++y)
+        for (int x = 1; x < d.nx - 1; ++x) {
+          bool near = false;
+          for (int dz = -1; dz <= 1 && !near; ++dz)
+            for (int dy = -1; dy <= 1 && !near; ++dy)
+              for (int dx = -1; dx <= 1 && !near; ++dx) near = mask[d.index(x + dx, y + dy, z + dz)] != 0;
+          grown[d.index(x, y, z)] = near;
+        }
+    mask.swap(grown);
+  }
+  return mask;
+}
+
+RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest& req, const RunContext& ctx) {
+  RelitModel out;
+  out.weights = relight_weights(req);
+  std::set<int> needed;
+  for (const auto& w : out.weights) needed.insert(w.first);
+  const BaseSolutions base(vdb, needed, "this sun", ctx);
+  out.frame = base.frame();
+  out.density = base.density();
+  const std::size_t n = out.frame.dims.count();
+  std::array<std::vector<float>, 3> sum;
+  for (int c = 0; c < 3; ++c) {
+    sum[c].assign(n, 0.0f);
+    out.light[c].assign(n, 0.0f);
+  }
+  base.combine(out.weights, sum);
+  const std::vector<std::uint8_t> near = near_medium(out.frame.dims, out.density, 1);
+  for (std::size_t i = 0; i < n; ++i)
+    if (near[i])
+      for (int c = 0; c < 3; ++c) out.light[c][i] = sum[c][i];
   return out;
 }
 

@@ -1,12 +1,15 @@
-// Relighting one baked model for a sun (`lblight relight`, docs/output-format.md): the light of a
-// static bake assembled from the base solutions, light = s (w_a B_a + w_b B_b + w_c B_c) + a B00
-// with the weights of the sun's direction on the 32-face polyhedron (docs/model.md sec. 4.1), as
-// the .lbh reader does per sample. The same numbers a static bake of that sun gives, up to float
-// rounding (tests/cli/test_relight_cli.cpp).
+// Relighting from base solutions (`lblight relight`, docs/output-format.md, docs/forest.md): the
+// light of a static bake assembled as light = s (w_a B_a + w_b B_b + w_c B_c) + a B00 with the
+// weights of the sun's direction on the 32-face polyhedron (docs/model.md sec. 4.1), as the .lbh
+// reader does per sample. The same numbers a static bake of that sun gives, up to float rounding
+// (tests/cli/test_relight_cli.cpp).
 #pragma once
 
 #include <array>
 #include <filesystem>
+#include <map>
+#include <optional>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -22,6 +25,36 @@ struct RelightRequest {
   double ambient = 0.0;    // a
 };
 
+// (base solution, weight) pairs for a sun given as the direction toward it, in the frame of the
+// lattice being relit: the sun's three directions (weights x intensity, negligible ones dropped),
+// then B00 x ambient. Error(InvalidInput) for a zero or non-finite direction.
+std::vector<std::pair<int, double>> relight_weights(const RelightRequest& request);
+
+// The base-solution grids of one bake .vdb (density, brown and the B.. grids asked for), on the
+// bake's lattice box.
+class BaseSolutions {
+ public:
+  // Reads `solutions` (every B.. grid the file has when nullopt). Error(InvalidInput) naming the
+  // file when it is not an lblight bake, or when a listed solution was left out by the bake
+  // (`why`: what needed it).
+  BaseSolutions(const std::filesystem::path& vdb, const std::optional<std::set<int>>& solutions, const std::string& why,
+                const RunContext& ctx = {});
+  const std::filesystem::path& file() const { return file_; }
+  const DenseFrame& frame() const { return frame_; }
+  const std::vector<float>& density() const { return density_; }
+  const std::vector<float>& wood() const { return wood_; }  // empty when the model has none
+  // sum_k weight_k B_k per channel, in double and rounded once, at `nodes` (every node when
+  // null); out[c] must hold frame().dims.count() values.
+  void combine(const std::vector<std::pair<int, double>>& weights, std::array<std::vector<float>, 3>& out,
+               const std::vector<std::size_t>* nodes = nullptr) const;
+
+ private:
+  std::filesystem::path file_;
+  DenseFrame frame_;
+  std::vector<float> density_, wood_;
+  std::map<int, std::array<std::vector<float>, 3>> grids_;
+};
+
 struct RelitModel {
   DenseFrame frame;                            // the bake's lattice box
   std::array<std::vector<float>, 3> light;     // 0 outside the occupied nodes and their neighbours
@@ -29,9 +62,14 @@ struct RelitModel {
   std::vector<std::pair<int, double>> weights; // (base solution, weight) used
 };
 
-// Reads the base-solution grids of one bake .vdb. Error(InvalidInput) naming the file and the
-// grid when the bake left out a solution this sun needs (a sun outside the scene's sun_range, or
-// an instance rotation it did not declare) or holds a static bake.
+// One bake .vdb relit. Error(InvalidInput) naming the file and the grid when the bake left out a
+// solution this sun needs (a sun outside the scene's sun_range, or an instance rotation it did
+// not declare) or holds a static bake.
 RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest& request, const RunContext& ctx = {});
+
+// The occupied nodes of `density` and their 26 neighbours, `rings` times over (a renderer
+// interpolates between occupied nodes and their neighbours), never the boundary layer, whose
+// fixed source values are not light in the medium.
+std::vector<std::uint8_t> near_medium(const Dims& dims, const std::vector<float>& density, int rings);
 
 }  // namespace lblight

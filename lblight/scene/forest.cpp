@@ -57,8 +57,19 @@ struct Random {
 
 ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models, InstanceRotation rotation) {
   r.expect_object();
-  r.only_keys({"instances", "generator", "comment"});
+  r.only_keys({"instances", "generator", "coarse", "comment"});
   ForestSpec f;
+  if (r.has("coarse")) {
+    const JsonReader c = r.child("coarse");
+    if (c.json().is_boolean()) {
+      f.coarse = c.json().get<bool>();
+    } else {
+      c.expect_object();
+      c.only_keys({"cell_size", "tolerance", "comment"});
+      f.cell_size = c.number_or("cell_size", 0.0, 1e-4, 1e6, "1e-4..1e6 world units (or leave it out: 2 x the coarsest model voxel x the largest scale)");
+      f.coarse_tolerance = c.number_or("tolerance", f.coarse_tolerance, 1e-8, 0.5, "1e-8..0.5");
+    }
+  }
   if (r.has("instances")) {
     const JsonReader list = r.child("instances");
     if (!list.json().is_array()) list.fail("expected a list of instances");
@@ -124,6 +135,34 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
   }
   if (f.empty()) r.fail("a forest needs instances or a generator");
   return f;
+}
+
+InstanceTransform::InstanceTransform(const ForestInstance& in)
+    : cos_(std::cos(in.yaw_degrees * (M_PI / 180.0))),
+      sin_(std::sin(in.yaw_degrees * (M_PI / 180.0))),
+      scale_(in.scale),
+      position_{in.position[0], in.position[1], in.position[2]} {
+  // Exact quarter turns, so a 90-degree instance permutes lattice directions exactly.
+  const double q = in.yaw_degrees / 90.0;
+  if (q == std::round(q)) {
+    const long k = ((static_cast<long>(q) % 4) + 4) % 4;
+    cos_ = k == 0 ? 1.0 : k == 2 ? -1.0 : 0.0;
+    sin_ = k == 1 ? 1.0 : k == 3 ? -1.0 : 0.0;
+  }
+}
+
+Vec3d InstanceTransform::to_world(const Vec3d& p) const {
+  return {position_.x + scale_ * (cos_ * p.x - sin_ * p.y), position_.y + scale_ * (sin_ * p.x + cos_ * p.y),
+          position_.z + scale_ * p.z};
+}
+
+Vec3d InstanceTransform::to_model(const Vec3d& w) const {
+  const double x = (w.x - position_.x) / scale_, y = (w.y - position_.y) / scale_, z = (w.z - position_.z) / scale_;
+  return {cos_ * x + sin_ * y, -sin_ * x + cos_ * y, z};
+}
+
+Vec3d InstanceTransform::direction_to_model(const Vec3d& d) const {
+  return {cos_ * d.x + sin_ * d.y, -sin_ * d.x + cos_ * d.y, d.z};
 }
 
 std::vector<ForestInstance> forest_instances(const ForestSpec& f, const std::string& file) {

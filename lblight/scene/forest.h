@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "lblight/lattice/sun.h"
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/scene/json_reader.h"
 
@@ -41,7 +42,27 @@ struct ForestSpec {
   std::vector<ForestInstance> instances;   // listed
   std::vector<std::string> instance_paths;  // JSON pointer of each listed instance, for messages
   std::optional<ForestGenerator> generator;
+  // The coarse forest grid ([Steele2009] sec. 4.3, docs/forest.md): solved unless "coarse": false;
+  // cell edge in world units, 0 = kDefaultCoarseCellVoxels x the coarsest model voxel x the largest scale.
+  bool coarse = true;
+  double cell_size = 0;
+  double coarse_tolerance = 1e-3;  // the coarse lattices' target error: they only shade
   bool empty() const { return instances.empty() && !generator; }
+};
+
+// Where an instance puts its model: world = position + scale * Rz(yaw) * p, p in the model's own
+// world coordinates (its grid's index_to_world); directions rotate with Rz(yaw) only.
+class InstanceTransform {
+ public:
+  explicit InstanceTransform(const ForestInstance& instance);
+  Vec3d to_world(const Vec3d& model) const;
+  Vec3d to_model(const Vec3d& world) const;
+  Vec3d direction_to_model(const Vec3d& world) const;
+  double scale() const { return scale_; }
+
+ private:
+  double cos_ = 1, sin_ = 0, scale_ = 1;
+  Vec3d position_;
 };
 
 inline constexpr int kMaxForestInstances = 1'000'000;  // ~100 MB of instances

@@ -462,7 +462,17 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   else scene.lighting.solutions = parse_solution_list("all", root.location());  // "auto" with no constraints
   if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
   if (root.has("output")) scene.output = read_output(root.child("output"));
-  if (root.has("forest")) scene.forest = read_forest(root.child("forest"), names, scene.lighting.sun_constraints.rotation);
+  if (root.has("forest")) {
+    scene.forest = read_forest(root.child("forest"), names, scene.lighting.sun_constraints.rotation);
+    // The coarse forest lattices are written as forest.vdb and forest.alone.<model>.vdb.
+    for (std::size_t i = 0; i < scene.models.size(); ++i) {
+      const std::string& n = scene.models[i].name;
+      if (n == "forest" || n.rfind("forest.", 0) == 0)
+        models.element(i).fail("model name '" + n + "' is taken by the coarse forest grid's files (forest.vdb, "
+                               "forest.alone.<model>.vdb) in a scene with a forest; rename the model",
+                               "name");
+    }
+  }
   scene.hash = "fnv1a64:" + hex64(fnv1a64(j.dump()));
   return scene;
 }

@@ -7,6 +7,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
 #include "lblight/lattice/d3q19.h"
+#include "lblight/scene/forest_coarse.h"
 #include "lblight/scene/load_model.h"
 
 namespace lblight {
@@ -130,9 +131,9 @@ bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int coun
 
 // The model's grid, checked (docs/model.md sec. 6), cropped to its occupied box and grown into
 // its lattice.
-void plan_lattice(ModelPlan& mp, const Scene& scene, const RunContext& ctx, std::vector<std::string>& warnings) {
+void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector<std::string>& warnings) {
   const ModelSpec& spec = *mp.spec;
-  mp.grid = load_model_grid(spec, scene, ctx);
+  mp.grid = std::move(grid);
   mp.stats = check_stability(spec, mp.grid, scene, warnings);
   const std::array<double, 3> vs = mp.grid.voxel_size();
   const double lo = std::min({vs[0], vs[1], vs[2]}), hi = std::max({vs[0], vs[1], vs[2]});
@@ -273,7 +274,69 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
   }
 }
 
+// A coarse lattice as a model of its own: its spec (kept alive by the forest plan), grid and the
+// scene's lighting and solver settings.
+void add_coarse_plan(BakePlan& plan, const Scene& scene, const PlanOverrides& ov, const std::string& name,
+                     CoarseGrid coarse, PlanRole role, const std::string& alone_model) {
+  auto spec = std::make_shared<ModelSpec>();
+  spec->name = name;
+  spec->material = coarse.medium;
+  spec->wood_material = coarse.wood;
+  spec->margin = 1;
+  spec->crop = true;
+  spec->json_path = "/forest/coarse";
+  spec->density.json_path = "/forest/coarse";
+  plan.forest->coarse_specs.push_back(spec);
+  ModelPlan mp;
+  mp.spec = spec.get();
+  mp.role = role;
+  mp.alone_model = alone_model;
+  plan_lattice(mp, scene, std::move(coarse.grid), plan.warnings);
+  plan_channels(mp, scene.solver.model);
+  plan_solutions(mp, scene, ov);
+  PlanOverrides coarse_ov = ov;
+  coarse_ov.tolerance = scene.forest.coarse_tolerance;
+  plan_steps(mp, scene, coarse_ov, plan.precision);
+  plan.models.push_back(std::move(mp));
+}
+
+// The forest's instances and, unless the scene turns it off, its coarse lattices (docs/forest.md).
+// A default cell size that makes a cell too dense shrinks until cells pass.
+void plan_forest(BakePlan& plan, const Scene& scene, const PlanOverrides& ov) {
+  ForestPlan& fp = plan.forest.emplace();
+  fp.instances = forest_instances(scene.forest, scene.file.string());
+  fp.coarse = scene.forest.coarse;
+  if (!fp.coarse) return;
+  std::vector<ForestModel> models;
+  for (const ModelPlan& mp : plan.models) models.push_back({mp.spec, &mp.grid});
+  const Location where{scene.file.string(), "/forest/coarse/cell_size", {}};
+  double cell = scene.forest.cell_size;
+  fp.cell_size_note = "cell_size from the scene";
+  if (!(cell > 0)) {
+    cell = default_coarse_cell_size(models, fp.instances);
+    fp.cell_size_note = "default: " + message_number(kDefaultCoarseCellVoxels) + " x the coarsest model voxel x the largest scale";
+  }
+  CoarseForest cf = build_coarse_forest(models, fp.instances, cell, where);
+  auto warn_clamped = [&](const CoarseGrid& g, const std::string& what) {
+    if (g.clamped_cells > 0)
+      plan.warnings.push_back(what + ": " + std::to_string(g.clamped_cells) + " cell(s) deeper than " +
+                              message_number(kMaxCoarseOpticalDepth) + " (up to " + message_number(g.max_optical_depth) +
+                              ", solid wood) clamped to it; a smaller forest.coarse.cell_size clamps fewer");
+  };
+  warn_clamped(cf.forest, "coarse forest grid");
+  fp.cell_size = cell;
+  for (std::size_t m = 0; m < cf.alone.size(); ++m) warn_clamped(cf.alone[m], "coarse grid of '" + scene.models[m].name + "' alone");
+  const std::size_t fine_models = plan.models.size();
+  add_coarse_plan(plan, scene, ov, kForestCoarseName, std::move(cf.forest), PlanRole::ForestCoarse, {});
+  for (std::size_t m = 0; m < fine_models; ++m) {
+    const std::string model = scene.models[m].name;
+    add_coarse_plan(plan, scene, ov, forest_alone_name(model), std::move(cf.alone[m]), PlanRole::ForestAlone, model);
+  }
+}
+
 }  // namespace
+
+std::string forest_alone_name(const std::string& model) { return std::string(kForestCoarseName) + ".alone." + model; }
 
 BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
   BakePlan plan;
@@ -283,12 +346,13 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
   for (const ModelSpec& spec : scene.models) {
     ModelPlan mp;
     mp.spec = &spec;
-    plan_lattice(mp, scene, ctx, plan.warnings);
+    plan_lattice(mp, scene, load_model_grid(spec, scene, ctx), plan.warnings);
     plan_channels(mp, scene.solver.model);
     plan_solutions(mp, scene, ov);
     plan_steps(mp, scene, ov, plan.precision);
     plan.models.push_back(std::move(mp));
   }
+  if (!scene.forest.empty()) plan_forest(plan, scene, ov);
   return plan;
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -72,8 +73,14 @@ struct StepPolicy {
                             // rounding floor before the iteration shows its own (convergence.h)
 };
 
+// What a lattice of the plan is: a scene model, or one of the coarse forest lattices
+// (docs/forest.md): the whole forest, or one model standing alone on the same cells.
+enum class PlanRole { Model, ForestCoarse, ForestAlone };
+
 struct ModelPlan {
   const ModelSpec* spec = nullptr;
+  PlanRole role = PlanRole::Model;
+  std::string alone_model;  // ForestAlone: the scene model it stands for
   ModelGrid grid;
   LatticeGeometry lattice;
   std::array<int, 3> lattice_index_min{};  // index coordinate of lattice node (0, 0, 0)
@@ -88,10 +95,24 @@ struct ModelPlan {
   std::size_t systems() const { return solved_solutions() * channels.size(); }
 };
 
+// A scene's forest as planned: its instances and the coarse lattices' cell size. The coarse
+// lattices are entries of BakePlan::models named "forest" and "forest.alone.<model>".
+struct ForestPlan {
+  std::vector<ForestInstance> instances;
+  bool coarse = false;
+  double cell_size = 0;
+  std::string cell_size_note;  // how the cell size was chosen
+  std::vector<std::shared_ptr<const ModelSpec>> coarse_specs;  // what the coarse ModelPlans point to
+};
+
+inline constexpr const char* kForestCoarseName = "forest";
+std::string forest_alone_name(const std::string& model);  // "forest.alone.<model>"
+
 struct BakePlan {
   const Scene* scene = nullptr;
   Precision precision = Precision::Float32;  // resolved once here (override, else the scene's)
-  std::vector<ModelPlan> models;
+  std::vector<ModelPlan> models;             // the scene's models, then the coarse forest lattices
+  std::optional<ForestPlan> forest;
   std::vector<std::string> warnings;
 };
 
