@@ -29,6 +29,7 @@ struct RelightArgs {
   bool local = false;
   double voxel_size = 0;
   long long instance = -1;
+  int threads = 0;
 };
 
 bool holds_forest(const fs::path& dir) {
@@ -49,6 +50,7 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
   if (a.instance >= 0) req.instance = static_cast<std::size_t>(a.instance);
   RunContext ctx;
   ctx.cancel = &g_interrupted;
+  ctx.threads = usable_threads(a.threads);
   const fs::path out = a.output.empty() ? fs::path("forest-light.vdb") : fs::path(a.output);
   const nlohmann::json meta = {{"lblight_version", kVersion},
                                {"lblight_command", global.command_line},
@@ -180,6 +182,8 @@ Command add_relight_command(CLI::App& app, const GlobalOptions& global) {
       ->check(finite_range(1e-4, 1e6));
   cmd->add_option("--instance", args->instance, "Forest: relight only this instance (0-based, the manifest's order)")
       ->check(CLI::Range(0LL, 100000000LL));
+  cmd->add_option("--threads", args->threads, "Forest: CPU threads (0 = all cores); the result does not depend on it")
+      ->check(CLI::Range(0, 4096));
   return {cmd, [args, &global] { return run_relight(*args, global); }};
 }
 

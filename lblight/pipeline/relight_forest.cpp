@@ -232,7 +232,8 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
     RelightRequest local = req.sun;
     local.toward_sun = t.direction_to_model(sun);
     weights[i] = relight_weights(local);
-    for (const auto& w : weights[i]) needed[fm.instances[i].model].insert(w.first);
+    std::set<int>& n = needed[fm.instances[i].model];
+    for (const auto& w : weights[i]) n.insert(w.first);
   }
   std::map<std::string, FineModel> models;
   for (const auto& [name, solutions] : needed) {
@@ -298,7 +299,7 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
                     "the world-space light of " + std::to_string(chosen.size()) + " instance(s) at voxel size " + message_number(h),
                     "use a larger --voxel-size, or relight fewer instances (--instance)", {dir.string(), {}, {}});
   std::sort(centres.begin(), centres.end());
-  const int threads = std::max(1, omp_get_max_threads());
+  const int threads = ctx.threads > 0 ? ctx.threads : std::max(1, omp_get_max_threads());
   const int slab_count = std::max(1, std::min<int>(4 * threads, static_cast<int>(centres.size())));
   std::vector<Slab> slabs(static_cast<std::size_t>(slab_count));
   for (int s = 0; s < slab_count; ++s) {
@@ -310,7 +311,7 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
   }
   const double eps = kCoarseFactorFloor * (req.sun.intensity + 18.0 * req.sun.ambient);
   std::exception_ptr failure;
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (int s = 0; s < slab_count; ++s) {
     try {
       Slab& slab = slabs[s];

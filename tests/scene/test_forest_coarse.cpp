@@ -1,0 +1,124 @@
+// The coarse forest grid (lblight/scene/forest_coarse.h): optical depth kept through a
+// homogeneous block at any cell size and instance scale, cells clamped where too deep, the
+// alone grids of each model, and the instance transform's quarter turns exact.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "lblight/scene/forest_coarse.h"
+#include "lblight/scene/material.h"
+
+using namespace lblight;
+
+namespace {
+
+// A block of n^3 voxels of edge h and density rho, voxel centres at h (i, j, k) + origin.
+ModelGrid block(int n, double h, float rho, std::array<double, 3> origin = {0, 0, 0}) {
+  ModelGrid g;
+  g.dims = {n, n, n};
+  g.index_to_world = {h, 0, 0, origin[0], 0, h, 0, origin[1], 0, 0, h, origin[2], 0, 0, 0, 1};
+  g.density.assign(g.dims.count(), rho);
+  g.material.assign(g.dims.count(), kMaterialMedium);
+  return g;
+}
+
+ModelSpec leaf_model(const std::string& name) {
+  ModelSpec s;
+  s.name = name;
+  s.material = *material_preset("leaf");
+  s.wood_material = *material_preset("bark");
+  return s;
+}
+
+// Optical depth along z through cell column (x, y) of a coarse grid: sum rho sigma_t.
+double column_depth(const CoarseGrid& c, int x, int y) {
+  double d = 0;
+  for (int z = 0; z < c.grid.dims.nz; ++z) d += c.grid.density[c.grid.dims.index(x, y, z)] * c.medium.channel[1].sigma_t();
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("coarse cells keep the optical depth of a homogeneous block", "[forest]") {
+  const ModelSpec spec = leaf_model("block");
+  const double sigma_t = spec.material.channel[1].sigma_t();  // leaf: 1 per voxel in every channel
+  for (const auto& [voxels_per_cell, scale] : {std::pair{2, 1.0}, std::pair{4, 1.0}, std::pair{4, 2.0}}) {
+    // 8^3 voxels of edge 0.25 (x scale in the world); the block starts on a cell boundary.
+    const double h = 0.25, cell = voxels_per_cell * h * scale;
+    const ModelGrid g = block(8, h, 0.2f, {0.5 * h, 0.5 * h, 0.5 * h});
+    // Voxel centres at h (i + 1/2) x scale: with the instance at the origin every cell of
+    // `cell` holds whole voxels (cell centres at cell (i, j, k), edges at cell (i + 1/2)).
+    const ForestInstance in{"block", {-0.5 * cell, -0.5 * cell, -0.5 * cell}, 0, scale};
+    const CoarseForest c = build_coarse_forest({{&spec, &g}}, {in}, cell, {});
+    INFO("voxels per cell " << voxels_per_cell << ", scale " << scale);
+    const int cells = 8 / voxels_per_cell;
+    REQUIRE(c.forest.grid.dims.nx >= cells);
+    // Fine optical depth through the block along z: 8 voxels x rho sigma_t, whatever the scale
+    // (a scaled instance is the same lattice, larger in the world).
+    const double fine = 8 * 0.2 * sigma_t;
+    int columns = 0;
+    for (int y = 0; y < c.forest.grid.dims.ny; ++y)
+      for (int x = 0; x < c.forest.grid.dims.nx; ++x) {
+        const double d = column_depth(c.forest, x, y);
+        if (d == 0) continue;
+        ++columns;
+        CHECK(d == Approx(fine).epsilon(1e-6));
+      }
+    CHECK(columns == cells * cells);
+    CHECK(c.forest.clamped_cells == 0);
+    CHECK(c.forest.max_optical_depth == Approx(0.2 * sigma_t * voxels_per_cell).epsilon(1e-6));
+    // The alone grid (the model at the origin, scale 1: other cell boundaries) holds the same
+    // optical depth summed over its cells, over scale^2 (the scaled block covers scale^2 as many
+    // columns).
+    REQUIRE(c.alone.size() == 1);
+    double forest_sum = 0, alone_sum = 0;
+    for (float v : c.forest.grid.density) forest_sum += v * c.forest.medium.channel[0].sigma_t();
+    for (float v : c.alone[0].grid.density) alone_sum += v * c.alone[0].medium.channel[0].sigma_t();
+    CHECK(alone_sum * scale * scale == Approx(forest_sum).epsilon(1e-6));
+  }
+}
+
+TEST_CASE("coarse cells deeper than the stability margin are clamped and counted", "[forest]") {
+  const ModelSpec spec = leaf_model("solid");
+  const ModelGrid g = block(8, 0.25, 1.0f, {0.125, 0.125, 0.125});
+  const CoarseForest c = build_coarse_forest({{&spec, &g}}, {{"solid", {-0.5, -0.5, -0.5}, 0, 1}}, 1.0, {});
+  CHECK(c.forest.max_optical_depth == Approx(4.0));  // 4 voxels of depth 1 across each cell
+  CHECK(c.forest.clamped_cells == 8);
+  double rho_sigma = 0;
+  for (float d : c.forest.grid.density) rho_sigma = std::max(rho_sigma, d * c.forest.medium.channel[0].sigma_t());
+  CHECK(rho_sigma == Approx(kMaxCoarseOpticalDepth));
+}
+
+TEST_CASE("two instances add their optical depth where they overlap, and the material is grey", "[forest]") {
+  const ModelSpec spec = leaf_model("block");
+  const ModelGrid g = block(4, 0.25, 0.1f, {0.125, 0.125, 0.125});
+  const CoarseForest one = build_coarse_forest({{&spec, &g}}, {{"block", {0, 0, 0}, 0, 1}}, 0.5, {});
+  const CoarseForest two = build_coarse_forest({{&spec, &g}}, {{"block", {0, 0, 0}, 0, 1}, {"block", {0, 0, 0}, 0, 1}}, 0.5, {});
+  CHECK(two.forest.max_optical_depth == Approx(2 * one.forest.max_optical_depth));
+  for (int c = 1; c < 3; ++c) {
+    CHECK(two.forest.medium.channel[c].sigma_a == two.forest.medium.channel[0].sigma_a);
+    CHECK(two.forest.medium.channel[c].g == two.forest.medium.channel[0].g);
+  }
+}
+
+TEST_CASE("instance transforms: quarter turns are exact permutations, other yaws rotate", "[forest]") {
+  const InstanceTransform t({"m", {1, 2, 3}, 90, 2});
+  const Vec3d w = t.to_world({1, 0, 0.5});
+  CHECK(w.x == 1.0);
+  CHECK(w.y == 4.0);
+  CHECK(w.z == 4.0);
+  const Vec3d back = t.to_model(w);
+  CHECK(back.x == 1.0);
+  CHECK(back.y == 0.0);
+  CHECK(back.z == 0.5);
+  const Vec3d d = t.direction_to_model({0, 1, 0});  // world +y is the model's +x after a quarter turn
+  CHECK(d.x == 1.0);
+  CHECK(d.y == 0.0);
+  const InstanceTransform u({"m", {0, 0, 0}, 30, 1});
+  const Vec3d r = u.to_world({1, 0, 0});
+  CHECK(r.x == Approx(std::cos(M_PI / 6)));
+  CHECK(r.y == Approx(0.5));
+  const Vec3d r2 = u.to_model(r);
+  CHECK(r2.x == Approx(1.0));
+  CHECK(std::fabs(r2.y) < 1e-12);
+}
