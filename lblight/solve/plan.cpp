@@ -321,7 +321,7 @@ void plan_forest(BakePlan& plan, const Scene& scene, const PlanOverrides& ov) {
     if (g.clamped_cells > 0)
       plan.warnings.push_back(what + ": " + std::to_string(g.clamped_cells) + " cell(s) deeper than " +
                               message_number(kMaxCoarseOpticalDepth) + " (up to " + message_number(g.max_optical_depth) +
-                              ", solid wood) clamped to it; a smaller forest.coarse.cell_size clamps fewer");
+                              ": solid wood, dense foliage) clamped to it; a smaller forest.coarse.cell_size clamps fewer");
   };
   warn_clamped(cf.forest, "coarse forest grid");
   fp.cell_size = cell;
