@@ -25,7 +25,7 @@ namespace {
 
 struct RelightArgs {
   std::string input, model, output;
-  double elevation = 45.0, azimuth = 0.0, intensity = 1.0, ambient = 0.0;
+  double elevation = 45.0, azimuth = 0.0, intensity = 1.0, ambient = 0.0, sky = 0.0;
   bool local = false;
   double voxel_size = 0;
   long long instance = -1;
@@ -45,6 +45,7 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
   req.sun.toward_sun = toward_sun_from_angles(a.elevation, a.azimuth);
   req.sun.intensity = a.intensity;
   req.sun.ambient = a.ambient;
+  req.sun.sky = a.sky;
   req.coarse = !a.local;
   req.voxel_size = a.voxel_size;
   if (a.instance >= 0) req.instance = static_cast<std::size_t>(a.instance);
@@ -59,12 +60,14 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
                                {"lblight_sun_azimuth", a.azimuth},
                                {"lblight_intensity", a.intensity},
                                {"lblight_ambient", a.ambient},
+                               {"lblight_sky", a.sky},
                                {"lblight_coarse_factors", req.coarse}};
   const ForestRelightResult r = relight_forest(a.input, req, out, meta, ctx);
   nlohmann::json rec = {{"source", a.input},
                         {"output", out.string()},
                         {"sun", {{"elevation", a.elevation}, {"azimuth", a.azimuth}, {"intensity", a.intensity}}},
                         {"ambient", a.ambient},
+                        {"sky", a.sky},
                         {"coarse_factors", r.coarse},
                         {"voxel_size", r.voxel_size},
                         {"active_voxels", r.active_voxels},
@@ -120,6 +123,7 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
   req.toward_sun = toward_sun_from_angles(a.elevation, a.azimuth);
   req.intensity = a.intensity;
   req.ambient = a.ambient;
+  req.sky = a.sky;
   RunContext ctx;
   ctx.cancel = &g_interrupted;
   const RelitModel r = relight_model(vdb, req, ctx);
@@ -130,7 +134,8 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
                               {"lblight_lattice_dims", {r.frame.dims.nx, r.frame.dims.ny, r.frame.dims.nz}}};
   nlohmann::json lmeta = box;
   lmeta["lblight_meaning"] = "light of a static bake of this sun: intensity x (the sun's three base solutions by "
-                             "their weights) + ambient x B00; 1 = the open-air value of a unit sun";
+                             "their weights) + ambient x B00 + sky x (downward directions + half the level ones); 1 = the open-air value "
+                             "of a unit sun (ambient a: 18 a, sky S: 9 S)";
   nlohmann::json dmeta = box;
   const nlohmann::json meta = {{"lblight_version", kVersion},
                                {"lblight_command", global.command_line},
@@ -139,6 +144,7 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
                                {"lblight_sun_azimuth", a.azimuth},
                                {"lblight_intensity", a.intensity},
                                {"lblight_ambient", a.ambient},
+                               {"lblight_sky", a.sky},
                                {"lblight_weights", weights.dump()}};
   const std::vector<DenseGridOut> grids = {{"light", nullptr, &r.light, false, lmeta},
                                            {"density", &r.density, nullptr, true, dmeta}};
@@ -174,7 +180,14 @@ Command add_relight_command(CLI::App& app, const GlobalOptions& global) {
       ->check(finite_range(-360.0, 360.0))
       ->capture_default_str();
   cmd->add_option("--intensity", args->intensity, "Sun intensity s")->check(finite_range(0.0, 1e6))->capture_default_str();
-  cmd->add_option("--ambient", args->ambient, "Ambient level a (x B00)")->check(finite_range(0.0, 1e6))->capture_default_str();
+  cmd->add_option("--ambient", args->ambient, "Ambient level a (x B00): light from every direction, below included")
+      ->check(finite_range(0.0, 1e6))
+      ->capture_default_str();
+  cmd->add_option("--sky", args->sky,
+                  "Sky level S: the same radiance from the upper hemisphere only (the downward lattice directions, half "
+                  "the level ones); needs those base solutions")
+      ->check(finite_range(0.0, 1e6))
+      ->capture_default_str();
   cmd->add_option("-o,--output", args->output, "Output .vdb (default: <model>-light.vdb, or forest-light.vdb, here)")
       ->check(kNonEmpty);
   cmd->add_flag("--local", args->local, "Forest: each instance's own light only, without the coarse forest factors");

@@ -6,6 +6,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/lattice/d3q19.h"
 
 namespace lblight {
 namespace {
@@ -27,6 +28,11 @@ std::vector<std::pair<int, double>> relight_weights(const RelightRequest& req) {
   for (int k = 0; k < 3; ++k)
     if (w.weight[k] > kNegligibleSunWeight && req.intensity != 0.0) out.push_back({w.direction[k], req.intensity * w.weight[k]});
   if (req.ambient != 0.0) out.push_back({0, req.ambient});
+  if (req.sky != 0.0)
+    for (int j = 1; j < 19; ++j) {
+      const int cz = d3q19::cz(j);
+      if (cz <= 0) out.push_back({j, cz < 0 ? req.sky : 0.5 * req.sky});
+    }
   return out;
 }
 

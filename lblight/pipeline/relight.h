@@ -22,12 +22,16 @@ namespace lblight {
 struct RelightRequest {
   Vec3d toward_sun{0, 0, 1};
   double intensity = 1.0;  // s
-  double ambient = 0.0;    // a
+  double ambient = 0.0;    // a: light of radiance a from every direction (x B00)
+  double sky = 0.0;        // light of radiance `sky` from the upper hemisphere only
 };
 
 // (base solution, weight) pairs for a sun given as the direction toward it, in the frame of the
 // lattice being relit: the sun's three directions (weights x intensity, negligible ones dropped),
-// then B00 x ambient. Error(InvalidInput) for a zero or non-finite direction.
+// then B00 x ambient, then the sky: its radiance on every downward lattice direction and half of
+// it on the level ones (which stand for the band around the horizon), so a sky of S is the upper
+// half of an ambient of S (open air: 9 S against 18 S; docs/forest.md sec. 4). Yaw turns map the
+// sky onto itself. Error(InvalidInput) for a zero or non-finite direction.
 std::vector<std::pair<int, double>> relight_weights(const RelightRequest& request);
 
 // The base-solution grids of one bake .vdb (density, brown and the B.. grids asked for), on the

@@ -309,7 +309,7 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
     slabs[s].x_lo = from;
     slabs[s].x_hi = std::max(from, to);
   }
-  const double eps = kCoarseFactorFloor * (req.sun.intensity + 18.0 * req.sun.ambient);
+  const double eps = kCoarseFactorFloor * (req.sun.intensity + 18.0 * req.sun.ambient + 9.0 * req.sun.sky);
   std::exception_ptr failure;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (int s = 0; s < slab_count; ++s) {
@@ -414,7 +414,7 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
   volume.light_metadata = {
       {"lblight_meaning", "light of a static bake of this sun, per instance from its model's base solutions" +
                               std::string(req.coarse ? " x the coarse forest factor" : "") +
-                              "; 1 = the open-air value of a unit sun (ambient a: 18 a in open air)"},
+                              "; 1 = the open-air value of a unit sun (ambient a: 18 a in open air, sky S: 9 S)"},
       {"lblight_units", "open-air light of a unit sun"}};
   volume.density_metadata = {{"lblight_meaning", "the forest's density: the instances' fine densities resampled, summed, at most 1"}};
   write_file_atomically(output, [&](const fs::path& tmp) {

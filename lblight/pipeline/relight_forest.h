@@ -45,7 +45,7 @@ struct ForestRelightResult {
 };
 
 // The smallest light a coarse factor divides by, as a fraction of the open-air light of the sun and
-// ambient (intensity + 18 ambient): deep inside both coarse solutions the ratio is noise.
+// ambient (intensity + 18 ambient + 9 sky): deep inside both coarse solutions the ratio is noise.
 inline constexpr double kCoarseFactorFloor = 1e-3;
 
 // Reads the bake folder (its manifest's forest section and the .vdb files it names), relights and

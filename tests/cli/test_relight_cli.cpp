@@ -69,3 +69,42 @@ TEST_CASE("relight names the base solution a sun needs when the bake left it out
   CHECK(r.err.find("left out") != std::string::npos);
   CHECK(!std::filesystem::exists(tmp.path() / "below.vdb"));
 }
+
+TEST_CASE("relight --sky lights from the upper hemisphere only: the plant's base is no longer its brightest part", "[cli]") {
+  TempDir tmp;
+  write_text(tmp / "base.json", plant_scene(R"({"mode": "base", "solutions": "all"})"));
+  REQUIRE(run_cli("bake base.json -o base --backend cpu -q --tolerance 1e-4", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("relight base --intensity 0 --sky 1 -o sky.vdb", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("relight base --intensity 0 --ambient 1 -o ambient.vdb", tmp.path()).exit_code == 0);
+  const DenseGridIn sky = read_vdb_grid_dense(tmp / "sky.vdb", "light");
+  const DenseGridIn ambient = read_vdb_grid_dense(tmp / "ambient.vdb", "light");
+  const DenseGridIn density = read_vdb_grid_dense(tmp / "sky.vdb", "density");
+  const Dims& d = sky.frame.dims;
+  // Mean light of the occupied nodes in the lowest and the highest occupied layer.
+  auto layer_mean = [&](const DenseGridIn& g, bool top) {
+    for (int k = 0; k < d.nz; ++k) {
+      const int z = top ? d.nz - 1 - k : k;
+      double sum = 0;
+      int n = 0;
+      for (int y = 0; y < d.ny; ++y)
+        for (int x = 0; x < d.nx; ++x)
+          if (density.values[0][d.index(x, y, z)] > 0.0f) {
+            sum += g.values[1][d.index(x, y, z)];
+            ++n;
+          }
+      if (n > 0) return sum / n;
+    }
+    return 0.0;
+  };
+  const double sky_base = layer_mean(sky, false), sky_top = layer_mean(sky, true);
+  const double amb_base = layer_mean(ambient, false), amb_top = layer_mean(ambient, true);
+  INFO("sky: base " << sky_base << ", crown top " << sky_top << "; ambient: base " << amb_base << ", top " << amb_top);
+  // Ambient light from below makes the trunk's base brighter than the crown (what users saw);
+  // the sky turns that round.
+  CHECK(amb_base > amb_top);
+  CHECK(sky_base < sky_top);
+  CHECK(sky_base / sky_top < 0.85 * amb_base / amb_top);
+  // Everywhere: the sky is part of the ambient of the same radiance, about half of it in the open.
+  for (std::size_t i = 0; i < density.values[0].size(); ++i)
+    if (density.values[0][i] > 0.0f) REQUIRE(sky.values[1][i] < ambient.values[1][i]);
+}
