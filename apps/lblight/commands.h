@@ -31,5 +31,6 @@ Command add_decompress_command(CLI::App& app, const GlobalOptions& global);
 Command add_compare_command(CLI::App& app, const GlobalOptions& global);
 Command add_truth_command(CLI::App& app, const GlobalOptions& global);
 Command add_relight_command(CLI::App& app, const GlobalOptions& global);
+Command add_render_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace lblight::cli

@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
       cli::add_compare_command(app, global),
       cli::add_truth_command(app, global),
       cli::add_relight_command(app, global),
+      cli::add_render_command(app, global),
   };
 
   // The first word that is not a flag names the command (the global flags take no values); CLI11

@@ -1,0 +1,180 @@
+// lblight render: a picture of a bake for a sun (docs/rendering.md): single scattering of the sun
+// with shadows plus the LB solution's multiple scattering, ray marched, to OpenEXR and a PNG preview.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "apps/lblight/cli_support.h"
+#include "apps/lblight/commands.h"
+#include "lblight/core/error.h"
+#include "lblight/core/version.h"
+#include "lblight/io/image_io.h"
+#include "lblight/io/output_dir.h"
+#include "lblight/pipeline/render_bake.h"
+
+namespace fs = std::filesystem;
+
+namespace lblight::cli {
+namespace {
+
+struct RenderArgs {
+  std::string input, model, output = "render.exr", png, orbit = "three-quarter", size = "512x512", term = "all";
+  std::string material, wood_material;
+  std::vector<double> camera, look_at;
+  double fov = 35, elevation = 45, azimuth = 0, intensity = 1, ambient = 0, sky = 0, exposure = 0, step = 0.5;
+  bool half = true, full_float = false;
+  int threads = 0;
+};
+
+Vec3d vec3(const std::vector<double>& v, const char* option) {
+  if (v.size() != 3) throw_invalid(std::string(option) + " takes three numbers x,y,z");
+  return {v[0], v[1], v[2]};
+}
+
+std::string format3(const Vec3d& v) {
+  std::ostringstream s;
+  s << v.x << " " << v.y << " " << v.z;
+  return s.str();
+}
+
+// Linear radiance to 8-bit sRGB over a dark grey: exposure so the 99.5th percentile of the lit
+// pixels maps to 0.9 unless given.
+std::vector<std::uint8_t> tone_map(const Image& img, double exposure) {
+  const std::size_t n = static_cast<std::size_t>(img.width) * img.height;
+  if (!(exposure > 0)) {
+    std::vector<float> lum;
+    for (std::size_t i = 0; i < n; ++i)
+      if (img.rgba[4 * i + 3] > 1e-3f) lum.push_back((img.rgba[4 * i] + img.rgba[4 * i + 1] + img.rgba[4 * i + 2]) / 3.0f);
+    exposure = 1.0;
+    if (!lum.empty()) {
+      std::nth_element(lum.begin(), lum.begin() + static_cast<std::ptrdiff_t>(lum.size() * 995 / 1000), lum.end());
+      const float p = lum[lum.size() * 995 / 1000];
+      if (p > 0) exposure = 0.9 / p;
+    }
+  }
+  std::vector<std::uint8_t> out(3 * n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double alpha = img.rgba[4 * i + 3];
+      double v = std::clamp(exposure * img.rgba[4 * i + c] + (1 - alpha) * 0.05, 0.0, 1.0);
+      v = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+      out[3 * i + c] = static_cast<std::uint8_t>(std::lround(255 * v));
+    }
+  return out;
+}
+
+int run_render(const RenderArgs& a, const GlobalOptions& global) {
+  int width = 0, height = 0;
+  char x = 0;
+  std::istringstream ss(a.size);
+  if (!(ss >> width >> x >> height) || x != 'x' || !ss.eof() || width < 1 || height < 1 || width > 16384 || height > 16384)
+    throw_invalid("--size '" + a.size + "': expected WIDTHxHEIGHT, each 1..16384");
+  RelightRequest sun;
+  sun.toward_sun = toward_sun_from_angles(a.elevation, a.azimuth);
+  sun.intensity = a.intensity;
+  sun.ambient = a.ambient;
+  sun.sky = a.sky;
+  RenderSource src;
+  src.input = a.input;
+  src.model = a.model;
+  if (!a.material.empty()) src.material = a.material;
+  if (!a.wood_material.empty()) src.wood_material = a.wood_material;
+  RenderSettings st;
+  st.toward_sun = sun.toward_sun;
+  st.intensity = a.intensity;
+  st.step = a.step;
+  st.threads = usable_threads(a.threads);
+  st.term = a.term == "direct" ? RenderTerm::Direct : a.term == "indirect" ? RenderTerm::Indirect : RenderTerm::All;
+  src.light = st.term != RenderTerm::Direct;
+  RunContext ctx;
+  ctx.cancel = &g_interrupted;
+  const RenderVolume volume = load_render_volume(src, sun, ctx);
+  Camera cam;
+  if (!a.camera.empty()) {
+    cam.position = vec3(a.camera, "--camera");
+    cam.look_at = a.look_at.empty() ? Vec3d{0, 0, 0} : vec3(a.look_at, "--look-at");
+    cam.fov_degrees = a.fov;
+    cam.width = width;
+    cam.height = height;
+  } else {
+    const std::optional<Camera> c = orbit_camera(volume, a.orbit, width, height);
+    if (!c) throw_invalid("--orbit '" + a.orbit + "'; allowed: " + kOrbitPresets);
+    cam = *c;
+  }
+  int last = -1;
+  st.progress = [&](double f) {
+    const int pct = static_cast<int>(f * 100);
+    if (pct / 10 != last / 10) {
+      spdlog::info("render: {}% of {} rows", pct, height);
+      last = pct;
+    }
+  };
+  const auto t0 = std::chrono::steady_clock::now();
+  const Image img = render_volume(volume, cam, st, ctx);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const std::map<std::string, std::string> attrs = {
+      {"lblight_version", kVersion},
+      {"lblight_command", global.command_line},
+      {"lblight_source", a.input},
+      {"lblight_camera_position", format3(cam.position)},
+      {"lblight_camera_look_at", format3(cam.look_at)},
+      {"lblight_camera_fov_degrees", std::to_string(cam.fov_degrees)},
+      {"lblight_sun", "elevation " + std::to_string(a.elevation) + " azimuth " + std::to_string(a.azimuth) +
+                          " intensity " + std::to_string(a.intensity) + " ambient " + std::to_string(a.ambient) +
+                          " sky " + std::to_string(a.sky)},
+      {"lblight_term", a.term},
+      {"lblight_units", "radiance; 1 = a unit sun's irradiance per steradian"}};
+  const fs::path exr = a.output;
+  write_file_atomically(exr, [&](const fs::path& tmp) { write_exr(tmp, width, height, img.rgba, !a.full_float, attrs); });
+  fs::path png = a.png.empty() ? fs::path(exr).replace_extension(".png") : fs::path(a.png);
+  write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, width, height, tone_map(img, a.exposure)); });
+  std::cout << "rendered " << width << "x" << height << " (" << a.term << ") in " << seconds << " s on "
+            << (st.threads > 0 ? std::to_string(st.threads) + " thread(s)" : std::string("all cores")) << ": " << exr.string() << ", preview " << png.string() << "\n";
+  return 0;
+}
+
+}  // namespace
+
+Command add_render_command(CLI::App& app, const GlobalOptions& global) {
+  auto args = std::make_shared<RenderArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "render",
+      "A picture of a bake for a sun: ray marching through the density with single scattering of the sun "
+      "(Henyey-Greenstein, shadowed through the same density, [Chen2006] eqs. (1)-(6)) plus the LB solution's "
+      "multiple scattering (the relit light less the unscattered sun), into OpenEXR (RGBA, camera and sun in "
+      "the header) and a tone-mapped PNG preview. Input: a bake folder (--model), a bake's model .vdb, or a relit "
+      ".vdb (lblight relight, one model or a forest) with --material. docs/rendering.md.");
+  cmd->add_option("input", args->input, "Bake folder, model .vdb or relit .vdb")->required();
+  cmd->add_option("--model", args->model, "Model of a bake folder (needed when it holds several)")->check(kNonEmpty);
+  cmd->add_option("--sun-elevation", args->elevation, "Degrees above the horizon")->check(finite_range(-90.0, 90.0))->capture_default_str();
+  cmd->add_option("--sun-azimuth", args->azimuth, "Degrees from +x toward +y")->check(finite_range(-360.0, 360.0))->capture_default_str();
+  cmd->add_option("--intensity", args->intensity, "Sun intensity (irradiance)")->check(finite_range(0.0, 1e6))->capture_default_str();
+  cmd->add_option("--ambient", args->ambient, "Ambient level (x B00) in the LB light")->check(finite_range(0.0, 1e6))->capture_default_str();
+  cmd->add_option("--sky", args->sky, "Sky level (upper hemisphere) in the LB light")->check(finite_range(0.0, 1e6))->capture_default_str();
+  cmd->add_option("--orbit", args->orbit, std::string("Camera preset framing the volume: ") + kOrbitPresets)->capture_default_str();
+  cmd->add_option("--camera", args->camera, "Camera position x,y,z (world), instead of --orbit")->delimiter(',')->expected(3);
+  cmd->add_option("--look-at", args->look_at, "Point the camera looks at x,y,z (with --camera)")->delimiter(',')->expected(3);
+  cmd->add_option("--fov", args->fov, "Vertical field of view in degrees (with --camera)")->check(finite_range(1.0, 170.0))->capture_default_str();
+  cmd->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
+  cmd->add_option("--term", args->term, "direct (single-scattered sun), indirect (LB multiple scattering) or all")
+      ->check(CLI::IsMember({"direct", "indirect", "all"}))
+      ->capture_default_str();
+  cmd->add_option("--material", args->material, "Material preset of a relit .vdb's medium (leaf, cloud, ...)")->check(kNonEmpty);
+  cmd->add_option("--wood-material", args->wood_material, "Material preset of its wood (default: the medium's wood)")->check(kNonEmpty);
+  cmd->add_option("--step", args->step, "March step in voxels")->check(finite_range(0.05, 2.0))->capture_default_str();
+  cmd->add_flag("--float", args->full_float, "Write 32-bit float EXR channels (default half)");
+  cmd->add_option("--exposure", args->exposure, "PNG preview exposure (default: automatic)")->check(finite_range(0.0, 1e9));
+  cmd->add_option("-o,--output", args->output, "Output .exr")->capture_default_str()->check(kNonEmpty);
+  cmd->add_option("--png", args->png, "Preview .png (default: the .exr's name with .png)")->check(kNonEmpty);
+  cmd->add_option("--threads", args->threads, "CPU threads (0 = all cores); the image does not depend on it")->check(CLI::Range(0, 4096));
+  return {cmd, [args, &global] { return run_render(*args, global); }};
+}
+
+}  // namespace lblight::cli

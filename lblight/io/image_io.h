@@ -1,0 +1,24 @@
+// Images out: OpenEXR (RGBA, half or float, written with the OpenEXR library, string attributes
+// in the header) and an 8-bit PNG preview (tone-mapped by the caller), for `lblight render`.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace lblight {
+
+// rgba: width x height x 4 floats, top row first. Writes `file` directly (the caller stages it).
+void write_exr(const std::filesystem::path& file, int width, int height, const std::vector<float>& rgba, bool half,
+               const std::map<std::string, std::string>& attributes);
+
+// rgb: width x height x 3 bytes, top row first; an 8-bit RGB PNG (zlib).
+void write_png(const std::filesystem::path& file, int width, int height, const std::vector<std::uint8_t>& rgb);
+
+// Reads back an EXR's RGBA as floats and its string attributes (tests, `lblight inspect`).
+std::vector<float> read_exr(const std::filesystem::path& file, int& width, int& height,
+                            std::map<std::string, std::string>* attributes = nullptr);
+
+}  // namespace lblight

@@ -1,0 +1,28 @@
+// What `lblight render` draws, loaded from files: a model of a bake folder (relit for the sun from
+// its base solutions, materials from the manifest), a bake's model .vdb, or a relit .vdb (one
+// model's or a forest's `light` + `density` [+ `brown`] grids, with the material named by the
+// caller) - docs/rendering.md.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "lblight/core/run_context.h"
+#include "lblight/pipeline/relight.h"
+#include "lblight/render/volume_render.h"
+
+namespace lblight {
+
+struct RenderSource {
+  std::filesystem::path input;   // bake folder, bake .vdb or relit .vdb
+  std::string model;             // bake folder: which model (needed when it holds several)
+  std::optional<std::string> material, wood_material;  // presets, for a relit .vdb (override the manifest's)
+  bool light = true;             // load the LB light (false: direct term only)
+};
+
+// Error(InvalidInput) naming the file when it is none of the above, when the materials are not
+// known (a relit .vdb without --material), or when a base solution the sun needs is missing.
+RenderVolume load_render_volume(const RenderSource& source, const RelightRequest& sun, const RunContext& ctx = {});
+
+}  // namespace lblight

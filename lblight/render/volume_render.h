@@ -1,0 +1,79 @@
+// Volume rendering of a bake (`lblight render`, docs/rendering.md): ray marching through the
+// density with single scattering of the sun ([Chen2006] eqs. (1)-(6): in-scattering along the view
+// ray with the material's Henyey-Greenstein phase function, attenuated toward the eye and toward
+// the sun through the same density, H(t) the shadow term) plus the
+// multiple scattering the LB solution holds, emitted isotropically. The LB light contains the
+// sun's unscattered beam; the renderer removes it (intensity x the transmittance to the sun, in
+// the same units: 1 = the open-air light of a unit sun) before using the rest as scattered light,
+// so the direct term is not counted twice.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lblight/core/run_context.h"
+#include "lblight/lattice/dense_grid.h"
+#include "lblight/lattice/omega.h"
+#include "lblight/lattice/sun.h"
+
+namespace lblight {
+
+// What the renderer marches through: a dense box of nodes with uniform cubic voxels, axis-aligned
+// in the world (index (i, j, k) + frame.index_min at voxel_size (i, j, k) + origin).
+struct RenderVolume {
+  DenseFrame frame;
+  std::vector<float> density;                  // [0, 1] per node
+  std::vector<std::uint8_t> material;          // kMaterialMedium or kMaterialWood per node (empty: all medium)
+  std::array<std::array<OpticalParams, 3>, 2> materials{};  // per material, per channel, per voxel length
+  std::array<std::vector<float>, 3> light;     // the relit LB light per node (empty: no indirect term)
+};
+
+struct Camera {
+  Vec3d position{0, -5, 2}, look_at{0, 0, 1}, up{0, 0, 1};
+  double fov_degrees = 40;  // vertical
+  int width = 512, height = 512;
+};
+
+enum class RenderTerm { Direct, Indirect, All };
+
+struct RenderSettings {
+  Vec3d toward_sun{0, 0, 1};
+  double intensity = 1.0;      // irradiance of the sun's beam
+  RenderTerm term = RenderTerm::All;
+  double step = 0.5;           // march step in voxels
+  std::array<float, 3> background{0, 0, 0};
+  int threads = 0;             // 0 = all cores; the image does not depend on it
+  std::function<void(double)> progress;  // fraction of rows done, from the calling thread
+};
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<float> rgba;  // row-major from the top row, 4 floats per pixel, linear radiance
+};
+
+// The voxel edge (world units) and the world position of index (0, 0, 0) of the volume's frame;
+// Error(InvalidInput) when the transform is not a uniform axis-aligned scale and translation.
+double volume_voxel_size(const DenseFrame& frame);
+
+// Transmittance toward the sun per node and channel: exp(-integral of rho sigma_t) from the node's
+// centre out of the volume along toward_sun, marched at `step` voxels.
+std::array<std::vector<float>, 3> sun_transmittance(const RenderVolume& volume, const Vec3d& toward_sun, double step);
+
+Image render_volume(const RenderVolume& volume, const Camera& camera, const RenderSettings& settings,
+                    const RunContext& ctx = {});
+
+// A camera that frames the volume's occupied box from a preset direction: "front" (from -y),
+// "side" (from +x), "top", "three-quarter" (from -x -y, 30 degrees up). Empty for an unknown name.
+std::optional<Camera> orbit_camera(const RenderVolume& volume, const std::string& preset, int width, int height);
+inline constexpr const char* kOrbitPresets = "front, side, top, three-quarter";
+
+// Henyey-Greenstein phase function (per steradian) for the cosine between the light's travel
+// direction and the direction it scatters into; |g| is clamped to kMaxRenderedG.
+inline constexpr double kMaxRenderedG = 0.95;
+double henyey_greenstein(double g, double cos_theta);
+
+}  // namespace lblight

@@ -1,0 +1,81 @@
+// lblight render from the command line: a bake renders to an OpenEXR with camera and sun in its
+// header and a PNG preview, the sunlit side brighter than the shaded one; a relit .vdb needs its
+// material named; a forest bake is sent through relight first.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+
+#include "lblight/io/image_io.h"
+#include "tests/support/test_support.h"
+
+using namespace lblight;
+using namespace lblight::test;
+
+namespace {
+
+const char* kScene = R"({"version": 1, "models": [{"name": "tree", "density": {"type": "procedural", "shape": "plant",
+  "resolution": 16, "seed": 4}, "material": "leaf", "wood_material": "bark"}],
+  "lighting": {"mode": "base", "sun_range": {"min_elevation": 0, "max_elevation": 90}}, "solver": {"tolerance": 1e-3}})";
+
+// Mean red of the left and right halves of the lit pixels.
+std::pair<double, double> halves(const std::vector<float>& rgba, int w, int h) {
+  double l = 0, r = 0;
+  int nl = 0, nr = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float* p = &rgba[(static_cast<std::size_t>(y) * w + x) * 4];
+      if (p[3] < 0.05f) continue;
+      (x < w / 2 ? l : r) += p[0];
+      ++(x < w / 2 ? nl : nr);
+    }
+  return {l / std::max(nl, 1), r / std::max(nr, 1)};
+}
+
+}  // namespace
+
+TEST_CASE("render: a bake to EXR + PNG, camera and sun in the header, the sunlit side brighter", "[cli][render]") {
+  TempDir tmp;
+  write_text(tmp / "scene.json", kScene);
+  REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
+  // Sun low from +x, camera in front (from -y): +x is the image's right half.
+  const CliResult r = run_cli("render bake --sun-elevation 10 --sun-azimuth 0 --sky 0.02 --orbit front --size 64x48 -o tree.exr",
+                              tmp.path());
+  INFO(r.out << r.err);
+  REQUIRE(r.exit_code == 0);
+  CHECK(std::filesystem::exists(tmp.path() / "tree.png"));
+  int w = 0, h = 0;
+  std::map<std::string, std::string> attrs;
+  const std::vector<float> rgba = read_exr(tmp / "tree.exr", w, h, &attrs);
+  CHECK(w == 64);
+  CHECK(h == 48);
+  CHECK(attrs.count("lblight_camera_position") == 1);
+  CHECK(attrs["lblight_sun"].find("elevation 10") != std::string::npos);
+  const auto [left, right] = halves(rgba, w, h);
+  INFO("left " << left << ", right " << right);
+  CHECK(right > 1.3 * left);
+  // Each term alone; together they are their sum (the renderer adds them per sample).
+  REQUIRE(run_cli("render bake --sun-elevation 10 --orbit front --size 32x24 --term direct -o d.exr", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("render bake --sun-elevation 10 --orbit front --size 32x24 --term indirect -o i.exr", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("render bake --sun-elevation 10 --orbit front --size 32x24 --float -o a.exr", tmp.path()).exit_code == 0);
+  const auto d = read_exr(tmp / "d.exr", w, h), i = read_exr(tmp / "i.exr", w, h), a = read_exr(tmp / "a.exr", w, h);
+  for (std::size_t k = 0; k < a.size(); k += 4) CHECK(a[k] == Approx(d[k] + i[k]).margin(2e-3 * (a[k] + 1e-3)));
+}
+
+TEST_CASE("render: a relit .vdb needs its material; unknown presets and sizes are refused by name", "[cli][render]") {
+  TempDir tmp;
+  write_text(tmp / "scene.json", kScene);
+  REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("relight bake --sun-elevation 40 -o relit.vdb", tmp.path()).exit_code == 0);
+  const CliResult no = run_cli("render relit.vdb --sun-elevation 40 --size 16x16 -o x.exr", tmp.path());
+  CHECK(no.exit_code == 2);
+  CHECK(no.err.find("--material") != std::string::npos);
+  CHECK(!std::filesystem::exists(tmp.path() / "x.exr"));
+  CHECK(run_cli("render relit.vdb --material leaf --sun-elevation 40 --size 16x16 -o ok.exr", tmp.path()).exit_code == 0);
+  const CliResult other_sun = run_cli("render relit.vdb --material leaf --sun-elevation 20 --size 16x16 -o s.exr", tmp.path());
+  CHECK(other_sun.exit_code == 2);
+  CHECK(other_sun.err.find("relit for a sun at elevation 40") != std::string::npos);
+  const CliResult bad = run_cli("render relit.vdb --material glass --sun-elevation 40 --size 16x16 -o y.exr", tmp.path());
+  CHECK(bad.exit_code == 2);
+  CHECK(bad.err.find("glass") != std::string::npos);
+  CHECK(run_cli("render bake --size 16by16 -o z.exr", tmp.path()).exit_code == 2);
+}

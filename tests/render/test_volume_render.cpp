@@ -1,0 +1,131 @@
+// The volume renderer (lblight/render/volume_render.h): an empty volume shows the background, a
+// homogeneous slab lit from straight above matches the closed-form single-scattered radiance, the
+// shadow term is exp(-optical depth) along a lattice axis, the direct term is linear in the sun,
+// the LB term uses only the light beyond the unscattered sun, and images do not depend on threads.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "lblight/render/volume_render.h"
+
+using namespace lblight;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// nx x ny x nz nodes of density rho, voxel edge 1, node (0, 0, 0) at the world origin.
+RenderVolume slab(int nx, int ny, int nz, float rho, OpticalParams medium) {
+  RenderVolume v;
+  v.frame.dims = {nx, ny, nz};
+  v.density.assign(v.frame.dims.count(), rho);
+  for (auto& m : v.materials) m.fill(medium);
+  return v;
+}
+
+// A camera above the slab's centre looking straight down; the centre pixel of a 3x3 image is the
+// vertical ray through the centre.
+Camera above(const RenderVolume& v) {
+  Camera c;
+  const double cx = 0.5 * (v.frame.dims.nx - 1), cy = 0.5 * (v.frame.dims.ny - 1);
+  c.position = {cx, cy, v.frame.dims.nz + 20.0};
+  c.look_at = {cx, cy, 0};
+  c.up = {0, 1, 0};
+  c.fov_degrees = 10;
+  c.width = c.height = 3;
+  return c;
+}
+
+double centre(const Image& img, int channel) { return img.rgba[(1 * 3 + 1) * 4 + channel]; }
+
+}  // namespace
+
+TEST_CASE("render: an empty volume shows the background, fully transparent", "[render]") {
+  RenderVolume v = slab(8, 8, 8, 0.0f, {0.1, 0.5, 0.0});
+  RenderSettings st;
+  st.background = {0.2f, 0.3f, 0.4f};
+  Camera c = above(v);
+  c.width = c.height = 16;
+  const Image img = render_volume(v, c, st);
+  for (std::size_t p = 0; p < img.rgba.size() / 4; ++p) {
+    REQUIRE(img.rgba[4 * p + 0] == 0.2f);
+    REQUIRE(img.rgba[4 * p + 1] == 0.3f);
+    REQUIRE(img.rgba[4 * p + 2] == 0.4f);
+    REQUIRE(img.rgba[4 * p + 3] == 0.0f);
+  }
+}
+
+TEST_CASE("render: the shadow term is exp(-optical depth) along a lattice axis", "[render]") {
+  const RenderVolume v = slab(5, 5, 12, 0.6f, {0.05, 0.15, 0.0});
+  const auto t = sun_transmittance(v, {0, 0, 1}, 0.5);
+  const double sigma_t = 0.6 * 0.2;
+  for (int k = 0; k < 12; ++k) {
+    // From node k's centre up to the last node (the box's last half voxel is outside the nodes).
+    const double expected = std::exp(-sigma_t * (11 - k));
+    CHECK(t[1][v.frame.dims.index(2, 2, k)] == Approx(expected).epsilon(1e-5));
+  }
+}
+
+TEST_CASE("render: a homogeneous slab lit from straight above matches the closed-form single scattering", "[render]") {
+  // Radiance leaving the top of a slab of thickness L toward a viewer straight above, sun straight
+  // above: L_ss = sigma_s p(g, -1) E (1 - exp(-2 sigma_t L)) / (2 sigma_t).
+  for (const OpticalParams m : {OpticalParams{0.02, 0.05, 0.3}, OpticalParams{0.05, 0.2, -0.4}, OpticalParams{0.01, 0.1, 0.8}}) {
+    const RenderVolume v = slab(41, 41, 21, 1.0f, m);
+    RenderSettings st;
+    st.toward_sun = {0, 0, 1};
+    st.intensity = 2.0;
+    st.term = RenderTerm::Direct;
+    st.step = 0.25;
+    const Image img = render_volume(v, above(v), st);
+    const double L = 20, sigma_t = m.sigma_t();
+    const double expected = m.sigma_s * henyey_greenstein(m.g, -1.0) * 2.0 * (1 - std::exp(-2 * sigma_t * L)) / (2 * sigma_t);
+    INFO("sigma_a " << m.sigma_a << " sigma_s " << m.sigma_s << " g " << m.g);
+    CHECK(centre(img, 0) == Approx(expected).epsilon(0.01));
+    CHECK(centre(img, 3) == Approx(1 - std::exp(-sigma_t * L)).epsilon(0.01));  // alpha: 1 - transmittance
+  }
+}
+
+TEST_CASE("render: the direct term is linear in the sun, and the LB term counts only light beyond the unscattered sun",
+          "[render]") {
+  RenderVolume v = slab(21, 21, 11, 0.8f, {0.03, 0.12, 0.2});
+  RenderSettings st;
+  st.toward_sun = {0.3, 0.2, 1.0};
+  st.term = RenderTerm::Direct;
+  const Image one = render_volume(v, above(v), st);
+  st.intensity = 2.0;
+  const Image two = render_volume(v, above(v), st);
+  for (std::size_t i = 0; i < one.rgba.size(); i += 4) CHECK(two.rgba[i] == Approx(2 * one.rgba[i]).epsilon(1e-6));
+  // LB light that is exactly the attenuated sun holds no scattered light: no indirect term.
+  st.intensity = 1.5;
+  const auto t = sun_transmittance(v, st.toward_sun, st.step);
+  for (int c = 0; c < 3; ++c) {
+    v.light[c].resize(t[c].size());
+    for (std::size_t i = 0; i < t[c].size(); ++i) v.light[c][i] = static_cast<float>(1.5 * t[c][i]);
+  }
+  st.term = RenderTerm::Indirect;
+  const Image none = render_volume(v, above(v), st);
+  for (std::size_t i = 0; i < none.rgba.size(); i += 4) CHECK(std::fabs(none.rgba[i]) < 1e-6);
+  // One unit of scattered light everywhere: isotropic emission sigma_s / (4 pi) per unit length,
+  // seen through the slab: (sigma_s / 4 pi) (1 - exp(-sigma_t L)) / sigma_t.
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < t[c].size(); ++i) v.light[c][i] = static_cast<float>(1.5 * t[c][i] + 1.0);
+  const Image unit = render_volume(v, above(v), st);
+  const double sigma_t = 0.8 * 0.15, sigma_s = 0.8 * 0.12;
+  CHECK(centre(unit, 1) == Approx(sigma_s / (4 * kPi) * (1 - std::exp(-sigma_t * 10)) / sigma_t).epsilon(0.005));
+}
+
+TEST_CASE("render: identical images for any thread count", "[render]") {
+  RenderVolume v = slab(16, 12, 10, 0.5f, {0.05, 0.3, 0.5});
+  for (std::size_t i = 0; i < v.density.size(); ++i) v.density[i] = static_cast<float>((i * 7919) % 97) / 97.0f;
+  for (auto& c : v.light) c.assign(v.density.size(), 0.7f);
+  RenderSettings st;
+  st.toward_sun = {0.4, -0.3, 0.8};
+  const std::optional<Camera> cam = orbit_camera(v, "three-quarter", 40, 30);
+  REQUIRE(cam);
+  st.threads = 1;
+  const Image a = render_volume(v, *cam, st);
+  st.threads = 2;
+  const Image b = render_volume(v, *cam, st);
+  CHECK(a.rgba == b.rgba);
+  CHECK_FALSE(orbit_camera(v, "sideways", 4, 4));
+}
