@@ -110,10 +110,22 @@ std::array<std::vector<float>, 3> sun_transmittance(const RenderVolume& v, const
   const Vec3d dir = unit(toward_sun);
   std::array<std::vector<float>, 3> out;
   for (auto& c : out) c.assign(d.count(), 1.0f);
-#pragma omp parallel for schedule(static)
+  // Only nodes a sample in the medium interpolates from: occupied ones and their neighbours (a
+  // forest's box is mostly air).
+  auto needed = [&](int i, int j, int k) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int x = i + dx, y = j + dy, z = k + dz;
+          if (x >= 0 && y >= 0 && z >= 0 && x < d.nx && y < d.ny && z < d.nz && v.density[d.index(x, y, z)] > 0.0f) return true;
+        }
+    return false;
+  };
+#pragma omp parallel for schedule(dynamic, 1)
   for (int k = 0; k < d.nz; ++k)
     for (int j = 0; j < d.ny; ++j)
       for (int i = 0; i < d.nx; ++i) {
+        if (!needed(i, j, k)) continue;
         const Vec3d o{static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)};
         double t0, t1;
         if (!clip(d, o, dir, t0, t1)) continue;
@@ -126,6 +138,7 @@ std::array<std::vector<float>, 3> sun_transmittance(const RenderVolume& v, const
           if (rho <= 0) continue;
           const auto& m = v.materials[static_cast<std::size_t>(material_at(v, p))];
           for (int c = 0; c < 3; ++c) depth[c] += rho * m[c].sigma_t() * len;
+          if (depth[0] > 30 && depth[1] > 30 && depth[2] > 30) break;  // exp(-30): nothing gets through
         }
         for (int c = 0; c < 3; ++c) out[c][d.index(i, j, k)] = static_cast<float>(std::exp(-depth[c]));
       }
