@@ -4,6 +4,8 @@
 
 #include <cmath>
 
+#include <nlohmann/json.hpp>
+
 #include "lblight/io/vdb_io.h"
 #include "tests/support/test_support.h"
 
@@ -107,4 +109,28 @@ TEST_CASE("relight --sky lights from the upper hemisphere only: the plant's base
   // Everywhere: the sky is part of the ambient of the same radiance, about half of it in the open.
   for (std::size_t i = 0; i < density.values[0].size(); ++i)
     if (density.values[0][i] > 0.0f) REQUIRE(sky.values[1][i] < ambient.values[1][i]);
+}
+
+TEST_CASE("sun-weights prints the grids and weights a sun selects, and the 32 faces", "[cli]") {
+  const CliResult zenith = run_cli("sun-weights --elevation 90 --json");
+  REQUIRE(zenith.exit_code == 0);
+  const auto z = nlohmann::json::parse(zenith.out);
+  REQUIRE(z["weights"].size() >= 1);
+  double b06 = 0, total = 0;
+  for (const auto& w : z["weights"]) {
+    total += w["weight"].get<double>();
+    if (w["grid"] == "B06") b06 = w["weight"].get<double>();
+  }
+  CHECK(b06 == Approx(1.0));  // straight down: direction (0, 0, -1)
+  CHECK(total == Approx(1.0));
+  const CliResult s = run_cli("sun-weights --elevation 35 --azimuth 120 --intensity 1.5 --ambient 0.1 --json");
+  REQUIRE(s.exit_code == 0);
+  const auto j = nlohmann::json::parse(s.out);
+  double sun = 0, ambient = 0;
+  for (const auto& w : j["weights"]) (w["grid"] == "B00" ? ambient : sun) += w["weight"].get<double>();
+  CHECK(sun == Approx(1.5));
+  CHECK(ambient == Approx(0.1));
+  const CliResult f = run_cli("sun-weights --faces --json");
+  REQUIRE(f.exit_code == 0);
+  CHECK(nlohmann::json::parse(f.out).size() == 32);
 }
