@@ -1,5 +1,7 @@
 #include "lblight/pipeline/bake_output.h"
 
+#include "lblight/pipeline/relight.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -106,6 +108,11 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   done_.clear();
   encoded_.assign(mp.solutions.size(), LbhEncoded{});
   output_seconds_ = 0;
+  // A scene model's light is written on its occupied nodes and their 26 neighbours only (what a
+  // renderer interpolates between), never the boundary layer's source values; the coarse forest
+  // lattices keep their whole box, whose boundary is the open-air light relighting needs there.
+  keep_.clear();
+  if (mp.role == PlanRole::Model && !plan_.scene->output.full_box) keep_ = near_medium(mp.lattice.dims, mp.lattice.density, 1);
   if (!plan_.scene->output.vdb) return;
   const bool has_wood = mp.lattice.material_count > 1;
   const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
@@ -156,9 +163,19 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   g.metadata["lblight_iterations"] = r.iterations;
   g.metadata["lblight_error_estimate"] = r.error_estimate;
   g.metadata["lblight_converged"] = r.converged;
+  g.metadata["lblight_units"] = r.plan.index == 0 ? "1 = the open-air light of a unit sun; this ambient solution is 18 in open air"
+                                                  : "1 = the open-air light of a unit sun (this solution in empty space)";
+  g.metadata["lblight_active"] = keep_.empty() ? "the whole lattice box, boundary source values included"
+                                               : "occupied nodes and their 26 neighbours (0 elsewhere)";
   LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
   worker_.post([this, &mp, totals, std_error, g = std::move(g), lbh_in, slot]() mutable {
     const auto t0 = std::chrono::steady_clock::now();
+    if (!keep_.empty())
+      for (auto* grid : {totals.get(), std_error.get()})
+        if (grid)
+          for (auto& c : *grid)
+            for (std::size_t i = 0; i < c.size(); ++i)
+              if (!keep_[i]) c[i] = 0.0f;
     const LbhOutputSpec& lbh = plan_.scene->output.lbh;
     if (lbh.enabled) {
       lbh_in.rgb = totals.get();

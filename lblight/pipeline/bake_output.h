@@ -58,6 +58,7 @@ class BakeOutput {
   const ModelPlan* model_ = nullptr;
   std::vector<SolutionResult> done_;   // manifest rows (totals handed to the worker)
   std::vector<LbhEncoded> encoded_;    // slot i: done_[i], filled by the worker
+  std::vector<std::uint8_t> keep_;     // nodes whose light is written (empty: all of them)
   std::unique_ptr<VdbStreamWriter> vdb_;
   double output_seconds_ = 0;          // worker time spent on this model's output
   std::size_t peak_bytes_ = 0;

@@ -111,6 +111,9 @@ struct LbhOutputSpec {
 struct OutputSpec {
   bool vdb = true;  // the base-solution grids as OpenVDB (density is always written with them)
   LbhOutputSpec lbh;
+  // Light grids over the whole lattice box (the boundary layer's source values included) instead
+  // of only the occupied nodes and their neighbours (docs/output-format.md).
+  bool full_box = false;
 };
 
 struct Scene {

@@ -28,7 +28,7 @@ const char* kLbhScene = R"({
               "material": "leaf", "wood_material": "bark"}],
   "lighting": {"mode": "base", "solutions": "0,1,6"},
   "solver": {"iterations": 16},
-  "output": {"lbh": {"threshold": 0.01, "relative": true}}
+  "output": {"lbh": {"threshold": 0.01, "relative": true}, "full_box": true}
 })";
 
 std::string read_binary(const fs::path& p) {

@@ -209,7 +209,7 @@ TEST_CASE("Output written on a background worker equals output written inline", 
                   "material": "leaf", "wood_material": "bark"}],
       "lighting": {"mode": "base", "solutions": "all", "ambient_from_sum": true},
       "solver": {"iterations": 10},
-      "output": {"lbh": {"threshold": 0.01, "relative": true}}})",
+      "output": {"lbh": {"threshold": 0.01, "relative": true}, "full_box": true}})",
                                   tmp / "scene.json");
   const BakedModel inline_bake = bake_first_model(scene, tmp / "inline", false);
   const BakedModel background_bake = bake_first_model(scene, tmp / "background", true);

@@ -47,7 +47,7 @@ TEST_CASE("Output .vdb holds density, brown and B grids with transform and metad
       {"name": "shrub", "density": {"type": "procedural", "shape": "plant", "resolution": 14, "size": 2.8},
        "material": "leaf", "wood_material": "bark"}],
       "lighting": {"mode": "base", "solutions": "0,1,6"},
-      "solver": {"iterations": 12}})",
+      "solver": {"iterations": 12}, "output": {"full_box": true}})",
                                   tmp / "scene.json");
   const BakedModel baked = bake_first_model(scene, tmp / "out");
   const ModelPlan& mp = baked.model();
@@ -226,4 +226,48 @@ TEST_CASE("A wood grid must share the density grid's transform", "[io][validate]
   expect_invalid_input([&] { load_vdb_model(tmp, "wood"); }, "transform");
   write_grids(tmp / "grid.vdb", {cube_grid("density", 0.5f, 0.0f, 0.1), cube_grid("wood", 1.0f, 0.0f, 0.1)});
   CHECK(load_vdb_model(tmp, "wood").wood_nodes() == 64);
+}
+
+TEST_CASE("Output light grids are active only on occupied nodes and their neighbours, never the boundary layer", "[io]") {
+  TempDir tmp;
+  const std::string scene = R"({"version": 1, "name": "t", "models": [
+      {"name": "shrub", "density": {"type": "procedural", "shape": "plant", "resolution": 14, "size": 2.8},
+       "material": "leaf", "wood_material": "bark"}],
+      "lighting": {"mode": "base", "solutions": "0,1,6"}, "solver": {"iterations": 12})";
+  const BakedModel masked = bake_first_model(parse_scene(scene + "}", tmp / "a.json"), tmp / "masked");
+  const BakedModel full = bake_first_model(parse_scene(scene + R"(, "output": {"full_box": true}})", tmp / "b.json"), tmp / "full");
+  const DenseGridIn m = read_vdb_grid_dense(tmp / "masked" / "shrub.vdb", "B06");
+  const DenseGridIn f = read_vdb_grid_dense(tmp / "full" / "shrub.vdb", "B06");
+  const DenseGridIn rho = read_vdb_grid_dense(tmp / "masked" / "shrub.vdb", "density");
+  REQUIRE(m.frame == f.frame);
+  const Dims& d = m.frame.dims;
+  std::size_t kept = 0, occupied = 0;
+  for (int z = 0; z < d.nz; ++z)
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x) {
+        const std::size_t i = d.index(x, y, z);
+        bool near = false;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int a = x + dx, b = y + dy, c = z + dz;
+              near = near || (a >= 0 && b >= 0 && c >= 0 && a < d.nx && b < d.ny && c < d.nz &&
+                              rho.values[0][d.index(a, b, c)] > 0.0f);
+            }
+        near = near && !d.is_boundary(x, y, z);
+        occupied += rho.values[0][i] > 0.0f;
+        for (int c = 0; c < 3; ++c) {
+          if (near) REQUIRE(m.values[c][i] == f.values[c][i]);
+          else REQUIRE(m.values[c][i] == 0.0f);
+        }
+        kept += near;
+      }
+  const nlohmann::json info = inspect_vdb(tmp / "masked" / "shrub.vdb");
+  for (const auto& g : info["grids"])
+    if (g["name"] == "B06") {
+      CHECK(g["active_voxels"].get<std::size_t>() <= kept);
+      CHECK(g["metadata"]["lblight_units"].get<std::string>().find("open-air") != std::string::npos);
+    }
+  INFO("occupied " << occupied << ", kept " << kept << " of " << d.count());
+  CHECK(kept < d.count() / 2);
 }

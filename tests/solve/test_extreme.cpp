@@ -824,7 +824,7 @@ std::string two_models(const std::string& cloud_material, const std::string& lea
       {"name": "plant", "density": {"type": "procedural", "shape": "plant", "resolution": 12, "seed": 2},
        "material": )" + leaf + R"(, "wood_material": )" + wood + R"(}],
     "lighting": {"mode": "base", "solutions": "0,5,6,13"},
-    "solver": {"iterations": "auto", "tolerance": 1e-4, "max_iterations": 1500}})";
+    "solver": {"iterations": "auto", "tolerance": 1e-4, "max_iterations": 1500}, "output": {"full_box": true}})";
 }
 }  // namespace
 
