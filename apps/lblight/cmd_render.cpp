@@ -11,12 +11,17 @@
 #include <iostream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
 #include "lblight/core/version.h"
 #include "lblight/io/image_io.h"
 #include "lblight/io/output_dir.h"
+#include "lblight/lattice/d3q19.h"
+#include "lblight/pipeline/manifest.h"
+#include "lblight/pipeline/relight.h"
 #include "lblight/pipeline/render_bake.h"
 
 namespace fs = std::filesystem;
@@ -29,7 +34,7 @@ struct RenderArgs {
   std::string material, wood_material;
   std::vector<double> camera, look_at;
   double fov = 35, elevation = 45, azimuth = 0, intensity = 1, ambient = 0, sky = 0, exposure = 0, step = 0.5;
-  bool half = true, full_float = false;
+  bool half = true, full_float = false, sheet = false;
   int threads = 0;
 };
 
@@ -70,6 +75,67 @@ std::vector<std::uint8_t> tone_map(const Image& img, double exposure) {
   return out;
 }
 
+// The contact sheet: every base solution of a bake rendered as light of its own (its total,
+// emitted by the medium's scattering, each tile exposed on its own), labelled, in one SVG.
+int run_sheet(const RenderArgs& a, const RenderSource& src_in, int width, int height, const RunContext& ctx) {
+  RenderSource src = src_in;
+  src.light = false;
+  RenderVolume volume = load_render_volume(src, {}, ctx);
+  fs::path vdb = a.input;
+  if (fs::is_directory(vdb)) {
+    const nlohmann::json m = read_manifest(vdb);
+    std::string model = a.model;
+    if (model.empty())
+      for (const auto& e : m["models"])
+        if (e["file"].is_string()) model = e["name"].get<std::string>();
+    vdb = manifest_file(vdb, model + ".vdb", "/models");
+  }
+  const BaseSolutions base(vdb, std::nullopt, "the contact sheet", ctx);
+  std::vector<int> solutions;
+  for (int j = 0; j < 19; ++j)
+    if (base.has(j)) solutions.push_back(j);
+  if (solutions.empty()) throw_invalid("no base solutions (B00..B18) in this file: a static bake has one 'light' grid", {vdb.string(), {}, {}});
+  const std::optional<Camera> cam = orbit_camera(volume, a.orbit, width, height);
+  if (!cam) throw_invalid("--orbit '" + a.orbit + "'; allowed: " + kOrbitPresets);
+  RenderSettings st;
+  st.intensity = 0;  // nothing to take out: each tile shows its solution's whole light
+  st.term = RenderTerm::Indirect;
+  st.step = a.step;
+  st.threads = usable_threads(a.threads);
+  const std::vector<std::uint8_t> near = near_medium(volume.frame.dims, volume.density, 1);
+  const int columns = std::min<int>(5, static_cast<int>(solutions.size()));
+  const int rows = (static_cast<int>(solutions.size()) + columns - 1) / columns;
+  const int label = 22;
+  std::ostringstream svg;
+  svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << columns * width << "\" height=\"" << rows * (height + label)
+      << "\" font-family=\"sans-serif\" font-size=\"14\">\n<rect width=\"100%\" height=\"100%\" fill=\"#202020\"/>\n";
+  for (std::size_t k = 0; k < solutions.size(); ++k) {
+    const int j = solutions[k];
+    std::array<std::vector<float>, 3> light;
+    for (auto& c : light) c.assign(volume.frame.dims.count(), 0.0f);
+    base.combine({{j, 1.0}}, light);
+    for (int c = 0; c < 3; ++c)
+      for (std::size_t i = 0; i < light[c].size(); ++i)
+        if (!near[i]) light[c][i] = 0.0f;
+    volume.light = std::move(light);
+    const Image img = render_volume(volume, *cam, st, ctx);
+    const std::string png = encode_png(width, height, tone_map(img, 0));
+    const int x = static_cast<int>(k) % columns * width, y = static_cast<int>(k) / columns * (height + label);
+    char name[8];
+    std::snprintf(name, sizeof name, "B%02d", j);
+    svg << "<image x=\"" << x << "\" y=\"" << y + label << "\" width=\"" << width << "\" height=\"" << height
+        << "\" href=\"data:image/png;base64," << base64(png) << "\"/>\n";
+    svg << "<text x=\"" << x + 6 << "\" y=\"" << y + 16 << "\" fill=\"#e0e0e0\">" << name << " ("
+        << d3q19::cx(j) << "," << d3q19::cy(j) << "," << d3q19::cz(j) << ")" << (j == 0 ? " ambient" : "") << "</text>\n";
+  }
+  svg << "</svg>\n";
+  const fs::path out = a.output == "render.exr" ? fs::path("sheet.svg") : fs::path(a.output);
+  write_file_atomically(out, svg.str());
+  std::cout << "contact sheet of " << solutions.size() << " base solution(s), tiles " << width << "x" << height
+            << " (each exposed on its own): " << out.string() << "\n";
+  return 0;
+}
+
 int run_render(const RenderArgs& a, const GlobalOptions& global) {
   int width = 0, height = 0;
   char x = 0;
@@ -95,6 +161,7 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
   src.light = st.term != RenderTerm::Direct;
   RunContext ctx;
   ctx.cancel = &g_interrupted;
+  if (a.sheet) return run_sheet(a, src, width, height, ctx);
   const RenderVolume volume = load_render_volume(src, sun, ctx);
   Camera cam;
   if (!a.camera.empty()) {
@@ -170,6 +237,9 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--wood-material", args->wood_material, "Material preset of its wood (default: the medium's wood)")->check(kNonEmpty);
   cmd->add_option("--step", args->step, "March step in voxels")->check(finite_range(0.05, 2.0))->capture_default_str();
   cmd->add_flag("--float", args->full_float, "Write 32-bit float EXR channels (default half)");
+  cmd->add_flag("--sheet", args->sheet,
+                "Contact sheet instead: every base solution of the bake as a labelled tile of --size, in one SVG "
+                "(-o, default sheet.svg)");
   cmd->add_option("--exposure", args->exposure, "PNG preview exposure (default: automatic)")->check(finite_range(0.0, 1e9));
   cmd->add_option("-o,--output", args->output, "Output .exr")->capture_default_str()->check(kNonEmpty);
   cmd->add_option("--png", args->png, "Preview .png (default: the .exr's name with .png)")->check(kNonEmpty);

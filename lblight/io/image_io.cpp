@@ -82,7 +82,7 @@ void put32(std::string& s, std::uint32_t v) {
   for (int k = 3; k >= 0; --k) s.push_back(static_cast<char>((v >> (8 * k)) & 0xFF));
 }
 
-void chunk(std::ofstream& out, const char* type, const std::string& data) {
+void chunk(std::string& out, const char* type, const std::string& data) {
   std::string c;
   put32(c, static_cast<std::uint32_t>(data.size()));
   c.append(type, 4);
@@ -90,14 +90,14 @@ void chunk(std::ofstream& out, const char* type, const std::string& data) {
   const std::uint32_t crc = static_cast<std::uint32_t>(
       crc32(0, reinterpret_cast<const Bytef*>(c.data() + 4), static_cast<uInt>(c.size() - 4)));
   put32(c, crc);
-  out.write(c.data(), static_cast<std::streamsize>(c.size()));
+  out += c;
 }
 
 }  // namespace
 
-void write_png(const std::filesystem::path& file, int width, int height, const std::vector<std::uint8_t>& rgb) {
+std::string encode_png(int width, int height, const std::vector<std::uint8_t>& rgb) {
   if (rgb.size() != static_cast<std::size_t>(width) * height * 3)
-    throw Error(ErrorCategory::Internal, "write_png: pixel count does not match the size");
+    throw Error(ErrorCategory::Internal, "encode_png: pixel count does not match the size");
   std::string raw;
   raw.reserve(static_cast<std::size_t>(height) * (1 + 3 * width));
   for (int y = 0; y < height; ++y) {
@@ -108,11 +108,9 @@ void write_png(const std::filesystem::path& file, int width, int height, const s
   std::string packed(size, '\0');
   if (compress2(reinterpret_cast<Bytef*>(packed.data()), &size, reinterpret_cast<const Bytef*>(raw.data()),
                 static_cast<uLong>(raw.size()), 6) != Z_OK)
-    throw Error(ErrorCategory::Internal, "write_png: zlib failed");
+    throw Error(ErrorCategory::Internal, "encode_png: zlib failed");
   packed.resize(size);
-  std::ofstream out(file, std::ios::binary);
-  if (!out) throw Error(ErrorCategory::Io, "cannot write", {file.string(), {}, {}});
-  out.write("\x89PNG\r\n\x1a\n", 8);
+  std::string out("\x89PNG\r\n\x1a\n", 8);
   std::string ihdr;
   put32(ihdr, static_cast<std::uint32_t>(width));
   put32(ihdr, static_cast<std::uint32_t>(height));
@@ -120,7 +118,31 @@ void write_png(const std::filesystem::path& file, int width, int height, const s
   chunk(out, "IHDR", ihdr);
   chunk(out, "IDAT", packed);
   chunk(out, "IEND", "");
+  return out;
+}
+
+void write_png(const std::filesystem::path& file, int width, int height, const std::vector<std::uint8_t>& rgb) {
+  const std::string bytes = encode_png(width, height, rgb);
+  std::ofstream out(file, std::ios::binary);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (!out) throw Error(ErrorCategory::Io, "cannot write", {file.string(), {}, {}});
+}
+
+std::string base64(const std::string& in) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((in.size() + 2) / 3 * 4);
+  for (std::size_t i = 0; i < in.size(); i += 3) {
+    const std::uint32_t a = static_cast<unsigned char>(in[i]);
+    const std::uint32_t b = i + 1 < in.size() ? static_cast<unsigned char>(in[i + 1]) : 0;
+    const std::uint32_t c = i + 2 < in.size() ? static_cast<unsigned char>(in[i + 2]) : 0;
+    const std::uint32_t v = (a << 16) | (b << 8) | c;
+    out.push_back(t[(v >> 18) & 63]);
+    out.push_back(t[(v >> 12) & 63]);
+    out.push_back(i + 1 < in.size() ? t[(v >> 6) & 63] : '=');
+    out.push_back(i + 2 < in.size() ? t[v & 63] : '=');
+  }
+  return out;
 }
 
 }  // namespace lblight

@@ -16,6 +16,8 @@ void write_exr(const std::filesystem::path& file, int width, int height, const s
 
 // rgb: width x height x 3 bytes, top row first; an 8-bit RGB PNG (zlib).
 void write_png(const std::filesystem::path& file, int width, int height, const std::vector<std::uint8_t>& rgb);
+std::string encode_png(int width, int height, const std::vector<std::uint8_t>& rgb);  // the file's bytes
+std::string base64(const std::string& bytes);  // for images embedded in SVG
 
 // Reads back an EXR's RGBA as floats and its string attributes (tests, `lblight inspect`).
 std::vector<float> read_exr(const std::filesystem::path& file, int& width, int& height,

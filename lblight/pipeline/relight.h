@@ -47,6 +47,7 @@ class BaseSolutions {
   const DenseFrame& frame() const { return frame_; }
   const std::vector<float>& density() const { return density_; }
   const std::vector<float>& wood() const { return wood_; }  // empty when the model has none
+  bool has(int solution) const { return grids_.count(solution) > 0; }
   // sum_k weight_k B_k per channel, in double and rounded once, at `nodes` (every node when
   // null); out[c] must hold frame().dims.count() values.
   void combine(const std::vector<std::pair<int, double>>& weights, std::array<std::vector<float>, 3>& out,

@@ -79,3 +79,20 @@ TEST_CASE("render: a relit .vdb needs its material; unknown presets and sizes ar
   CHECK(bad.err.find("glass") != std::string::npos);
   CHECK(run_cli("render bake --size 16by16 -o z.exr", tmp.path()).exit_code == 2);
 }
+
+TEST_CASE("render --sheet: one labelled tile per base solution of the bake, in one SVG", "[cli][render]") {
+  TempDir tmp;
+  write_text(tmp / "scene.json", kScene);
+  REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
+  const CliResult r = run_cli("render bake --sheet --size 24x24 -o sheet.svg", tmp.path());
+  INFO(r.out << r.err);
+  REQUIRE(r.exit_code == 0);
+  const std::string svg = read_text(tmp / "sheet.svg");
+  std::size_t images = 0;
+  for (std::size_t p = svg.find("<image "); p != std::string::npos; p = svg.find("<image ", p + 1)) ++images;
+  // sun_range from elevation 0 with no rotation declared: B00 and the 13 level-or-downward directions
+  CHECK(images == 14);
+  CHECK(svg.find(">B06 (0,0,-1)<") != std::string::npos);
+  CHECK(svg.find(">B05 ") == std::string::npos);  // left out by the bake
+  CHECK(svg.find("data:image/png;base64,iVBORw0KGgo") != std::string::npos);  // PNG signature
+}
