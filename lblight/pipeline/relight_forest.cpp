@@ -288,8 +288,8 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
     const FineModel& m = models.at(fm.instances[i].model);
     world_box(m.base->frame(), InstanceTransform(fm.instances[i]), h, lo[i], hi[i]);
     for (int a = 0; a < 3; ++a)
-      if (lo[i][a] < -(std::int64_t{1} << 22) * 8 || hi[i][a] > (std::int64_t{1} << 22) * 8)
-        throw_invalid("instance " + std::to_string(i) + " lies outside the +-3.3e7 voxels a world grid of voxel size " +
+      if (lo[i][a] < -(std::int64_t{1} << 23) + 8 || hi[i][a] > (std::int64_t{1} << 23) - 8)  // brick keys hold 21 bits
+        throw_invalid("instance " + std::to_string(i) + " lies outside the +-8.4e6 voxels a world grid of voxel size " +
                       message_number(h) + " holds; use a larger --voxel-size", {dir.string(), {}, {}});
     centres.push_back(((lo[i][0] + hi[i][0]) / 2) >> 3);
     voxels_estimate += static_cast<double>(m.near2.size()) * std::pow(m.voxel_edge * fm.instances[i].scale / h, 3);
