@@ -32,7 +32,12 @@ struct DenseGridOut {
   const std::array<std::vector<float>, 3>* rgb = nullptr;
   bool fog_volume = false;                      // GRID_FOG_VOLUME class (density)
   nlohmann::json metadata = nlohmann::json::object();  // int, float, bool, string, [3 ints] values
+  bool half = false;                            // stored as 16-bit floats
 };
+
+// The largest |half(v) - v| over the values, relative to the largest |v| (0 for all zeros): what
+// storing them as OpenVDB's 16-bit floats costs.
+double half_rounding_error(const std::array<std::vector<float>, 3>& rgb);
 
 // Writes the grids to `file` (which should be a staging path; see output_dir.h).
 void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,

@@ -1,6 +1,8 @@
 #include "lblight/io/vdb_stream_writer.h"
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <cstring>
 #include <exception>
@@ -98,6 +100,7 @@ openvdb::GridBase::Ptr make_grid(const DenseFrame& frame, const DenseGridOut& sp
     vg->setVectorType(openvdb::VEC_INVARIANT);
     g = vg;
   }
+  g->setSaveFloatAsHalf(spec.half);
   g->setName(spec.name);
   set_metadata(*g, spec.metadata);
   return g;
@@ -282,6 +285,16 @@ double VdbStreamWriter::compress_seconds() const {
 int VdbStreamWriter::grids_written() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->written;
+}
+
+double half_rounding_error(const std::array<std::vector<float>, 3>& rgb) {
+  double err = 0, peak = 0;
+  for (const auto& c : rgb)
+    for (float v : c) {
+      err = std::max(err, std::fabs(static_cast<double>(static_cast<float>(openvdb::math::half(v))) - v));
+      peak = std::max(peak, std::fabs(static_cast<double>(v)));
+    }
+  return peak > 0 ? err / peak : 0.0;
 }
 
 void write_vdb(const std::filesystem::path& file, const DenseFrame& frame, const std::vector<DenseGridOut>& grids,

@@ -107,6 +107,7 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   model_ = &mp;
   done_.clear();
   encoded_.assign(mp.solutions.size(), LbhEncoded{});
+  half_error_.assign(mp.solutions.size(), 0.0);
   output_seconds_ = 0;
   // A scene model's light is written on its occupied nodes and their 26 neighbours only (what a
   // renderer interpolates between), never the boundary layer's source values; the coarse forest
@@ -184,6 +185,8 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
     }
     if (vdb_) {
       g.rgb = totals.get();
+      g.half = plan_.scene->output.half;
+      if (g.half) half_error_[slot] = half_rounding_error(*totals);
       vdb_->add(g);
       if (std_error) {
         g.name += "_se";
@@ -293,6 +296,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
                       finite_or_null(c.error_estimate_max)});
     s["residual_history"] = hist;
     if (!encoded.empty()) s["compression"] = lbh_stats_json(encoded[k], lbh_name);
+    if (plan_.scene->output.half) s["half_error_max"] = half_error_[order[k]];
     model["solutions"].push_back(s);
   }
   model_ = nullptr;
@@ -332,6 +336,8 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
                   {"precision", to_string(plan_.precision)}};
   if (!info_.reference.is_null()) m["reference"] = info_.reference;
   m["models"] = models_;
+  m["units"] = "light: 1 = the open-air light of a unit sun (a directional base solution in empty space); B00 is 18 "
+               "in open air";
   if (plan_.forest) m["forest"] = forest_json(*plan_.forest);
   m["total_seconds"] = total_seconds;
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");

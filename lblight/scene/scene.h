@@ -114,6 +114,9 @@ struct OutputSpec {
   // Light grids over the whole lattice box (the boundary layer's source values included) instead
   // of only the occupied nodes and their neighbours (docs/output-format.md).
   bool full_box = false;
+  // Light grids stored as 16-bit floats (OpenVDB's half; half the file), their rounding error
+  // reported per solution in the manifest.
+  bool half = false;
 };
 
 struct Scene {

@@ -402,10 +402,11 @@ SolverSpec read_solver(const JsonReader& r) {
 // takes the defaults.
 OutputSpec read_output(const JsonReader& r) {
   r.expect_object();
-  r.only_keys({"vdb", "lbh", "full_box"});
+  r.only_keys({"vdb", "lbh", "full_box", "half"});
   OutputSpec out;
   out.vdb = r.boolean_or("vdb", true);
   out.full_box = r.boolean_or("full_box", false);
+  out.half = r.boolean_or("half", false);
   if (!r.has("lbh")) {
     if (!out.vdb) r.fail("nothing to write: vdb is false and no lbh output is asked for", "vdb");
     return out;

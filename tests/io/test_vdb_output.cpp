@@ -271,3 +271,33 @@ TEST_CASE("Output light grids are active only on occupied nodes and their neighb
   INFO("occupied " << occupied << ", kept " << kept << " of " << d.count());
   CHECK(kept < d.count() / 2);
 }
+
+TEST_CASE("output.half stores the light grids as 16-bit floats, the rounding error in the manifest", "[io]") {
+  TempDir tmp;
+  const std::string scene = R"({"version": 1, "name": "t", "models": [
+      {"name": "shrub", "density": {"type": "procedural", "shape": "plant", "resolution": 14, "size": 2.8},
+       "material": "leaf", "wood_material": "bark"}],
+      "lighting": {"mode": "base", "solutions": "0,1,6"}, "solver": {"iterations": 12})";
+  bake_first_model(parse_scene(scene + R"(, "output": {"half": true}})", tmp / "a.json"), tmp / "half");
+  bake_first_model(parse_scene(scene + "}", tmp / "b.json"), tmp / "float");
+  const DenseGridIn h = read_vdb_grid_dense(tmp / "half" / "shrub.vdb", "B06");
+  const DenseGridIn f = read_vdb_grid_dense(tmp / "float" / "shrub.vdb", "B06");
+  double err = 0, peak = 0;
+  bool rounded = false;
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < f.values[c].size(); ++i) {
+      err = std::max(err, static_cast<double>(std::fabs(h.values[c][i] - f.values[c][i])));
+      peak = std::max(peak, static_cast<double>(std::fabs(f.values[c][i])));
+      rounded = rounded || h.values[c][i] != f.values[c][i];
+    }
+  CHECK(rounded);                 // really stored as half
+  CHECK(err <= 1.0e-3 * peak);    // half: 11 significant bits
+  const auto manifest = nlohmann::json::parse(read_text(tmp / "half" / "manifest.json"));
+  const auto& sols = manifest["models"][0]["solutions"];
+  for (const auto& s : sols) {
+    REQUIRE(s.contains("half_error_max"));
+    CHECK(s["half_error_max"].get<double>() <= 1e-3);
+  }
+  CHECK(manifest["units"].get<std::string>().find("open-air") != std::string::npos);
+  CHECK(std::filesystem::file_size(tmp / "half" / "shrub.vdb") < std::filesystem::file_size(tmp / "float" / "shrub.vdb"));
+}
