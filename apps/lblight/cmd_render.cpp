@@ -23,6 +23,7 @@
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
 #include "lblight/pipeline/render_bake.h"
+#include "lblight/solve/plan.h"
 
 namespace fs = std::filesystem;
 
@@ -121,11 +122,9 @@ int run_sheet(const RenderArgs& a, const RenderSource& src_in, int width, int he
     const Image img = render_volume(volume, *cam, st, ctx);
     const std::string png = encode_png(width, height, tone_map(img, 0));
     const int x = static_cast<int>(k) % columns * width, y = static_cast<int>(k) / columns * (height + label);
-    char name[8];
-    std::snprintf(name, sizeof name, "B%02d", j);
     svg << "<image x=\"" << x << "\" y=\"" << y + label << "\" width=\"" << width << "\" height=\"" << height
         << "\" href=\"data:image/png;base64," << base64(png) << "\"/>\n";
-    svg << "<text x=\"" << x + 6 << "\" y=\"" << y + 16 << "\" fill=\"#e0e0e0\">" << name << " ("
+    svg << "<text x=\"" << x + 6 << "\" y=\"" << y + 16 << "\" fill=\"#e0e0e0\">" << base_grid_name(j) << " ("
         << d3q19::cx(j) << "," << d3q19::cy(j) << "," << d3q19::cz(j) << ")" << (j == 0 ? " ambient" : "") << "</text>\n";
   }
   svg << "</svg>\n";

@@ -13,6 +13,7 @@
 #include "lblight/lattice/d3q19.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/pipeline/relight.h"
+#include "lblight/solve/plan.h"
 
 namespace lblight::cli {
 namespace {
@@ -22,12 +23,6 @@ struct SunWeightArgs {
   std::vector<double> direction;
   bool json = false, faces = false;
 };
-
-std::string grid(int j) {
-  char b[8];
-  std::snprintf(b, sizeof b, "B%02d", j);
-  return b;
-}
 
 std::string velocity(int j) {
   char b[24];
@@ -42,12 +37,12 @@ int run_sun_weights(const SunWeightArgs& a) {
     int k = 0;
     for (const auto& f : polyhedron_faces()) {
       if (a.json) {
-        out.push_back({{"face", k}, {"grids", {grid(f[0]), grid(f[1]), grid(f[2])}},
+        out.push_back({{"face", k}, {"grids", {base_grid_name(f[0]), base_grid_name(f[1]), base_grid_name(f[2])}},
                        {"directions", {{d3q19::cx(f[0]), d3q19::cy(f[0]), d3q19::cz(f[0])},
                                        {d3q19::cx(f[1]), d3q19::cy(f[1]), d3q19::cz(f[1])},
                                        {d3q19::cx(f[2]), d3q19::cy(f[2]), d3q19::cz(f[2])}}}});
       } else {
-        std::cout << "| " << k << " | " << grid(f[0]) << " " << grid(f[1]) << " " << grid(f[2]) << " | "
+        std::cout << "| " << k << " | " << base_grid_name(f[0]) << " " << base_grid_name(f[1]) << " " << base_grid_name(f[2]) << " | "
                   << velocity(f[0]) << " " << velocity(f[1]) << " " << velocity(f[2]) << " |\n";
       }
       ++k;
@@ -68,12 +63,12 @@ int run_sun_weights(const SunWeightArgs& a) {
   const std::vector<std::pair<int, double>> w = relight_weights(req);
   if (a.json) {
     nlohmann::json out = {{"toward_sun", {req.toward_sun.x, req.toward_sun.y, req.toward_sun.z}}, {"weights", nlohmann::json::array()}};
-    for (const auto& [j, weight] : w) out["weights"].push_back({{"grid", grid(j)}, {"direction", {d3q19::cx(j), d3q19::cy(j), d3q19::cz(j)}}, {"weight", weight}});
+    for (const auto& [j, weight] : w) out["weights"].push_back({{"grid", base_grid_name(j)}, {"direction", {d3q19::cx(j), d3q19::cy(j), d3q19::cz(j)}}, {"weight", weight}});
     std::cout << out.dump(1) << "\n";
     return 0;
   }
   std::cout << "light = sum of weight x grid (1 = the open-air light of a unit sun):\n";
-  for (const auto& [j, weight] : w) std::cout << "  " << grid(j) << " " << velocity(j) << "  " << weight << "\n";
+  for (const auto& [j, weight] : w) std::cout << "  " << base_grid_name(j) << " " << velocity(j) << "  " << weight << "\n";
   return 0;
 }
 

@@ -7,17 +7,9 @@
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/d3q19.h"
+#include "lblight/solve/plan.h"
 
 namespace lblight {
-namespace {
-
-std::string grid_name(int solution) {
-  char b[8];
-  std::snprintf(b, sizeof b, "B%02d", solution);
-  return b;
-}
-
-}  // namespace
 
 std::vector<std::pair<int, double>> relight_weights(const RelightRequest& req) {
   const Vec3d& t = req.toward_sun;
@@ -46,10 +38,10 @@ BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::option
   std::set<int> solutions = wanted.value_or(std::set<int>{});
   if (!wanted)
     for (int j = 0; j < 19; ++j)
-      if (names.count(grid_name(j))) solutions.insert(j);
+      if (names.count(base_grid_name(j))) solutions.insert(j);
   for (int j : solutions)
-    if (!names.count(grid_name(j)))
-      throw_invalid(why + " needs base solution " + grid_name(j) +
+    if (!names.count(base_grid_name(j)))
+      throw_invalid(why + " needs base solution " + base_grid_name(j) +
                         ", which the bake left out; bake it (lighting.solutions, or a sun_range / instance_rotation "
                         "that includes this sun)",
                     {vdb.string(), {}, {}});
@@ -58,9 +50,9 @@ BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::option
   density_ = density.values[0];
   if (names.count("brown")) wood_ = read_vdb_grid_dense(vdb, "brown", ctx).values[0];
   for (int j : solutions) {
-    DenseGridIn b = read_vdb_grid_dense(vdb, grid_name(j), ctx);
+    DenseGridIn b = read_vdb_grid_dense(vdb, base_grid_name(j), ctx);
     if (!(b.frame.dims == frame_.dims) || b.frame.index_min != frame_.index_min)
-      throw_invalid("grid " + grid_name(j) + " does not cover the lattice box of grid 'density'", {vdb.string(), {}, {}});
+      throw_invalid("grid " + base_grid_name(j) + " does not cover the lattice box of grid 'density'", {vdb.string(), {}, {}});
     auto& g = grids_[j];
     for (int c = 0; c < 3; ++c) g[c] = b.values[c].empty() ? b.values[0] : std::move(b.values[c]);
     ctx.check_cancelled();
@@ -73,7 +65,7 @@ void BaseSolutions::combine(const std::vector<std::pair<int, double>>& weights, 
   for (const auto& [solution, weight] : weights) {
     const auto it = grids_.find(solution);
     if (it == grids_.end())
-      throw_invalid("relighting needs base solution " + grid_name(solution) + ", which was not read", {file_.string(), {}, {}});
+      throw_invalid("relighting needs base solution " + base_grid_name(solution) + ", which was not read", {file_.string(), {}, {}});
     src.push_back(&it->second);
   }
   auto one = [&](std::size_t i) {

@@ -155,24 +155,12 @@ ForestManifest read_forest_manifest(const fs::path& dir) {
 // World voxel box an instance can touch: its lattice box turned into the world, one voxel wider.
 void world_box(const DenseFrame& frame, const InstanceTransform& t, double h, std::array<std::int64_t, 3>& lo,
                std::array<std::int64_t, 3>& hi) {
-  double mn[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
-  double mx[3] = {-mn[0], -mn[1], -mn[2]};
-  const auto& m = frame.index_to_world;
-  for (int corner = 0; corner < 8; ++corner) {
-    const double i = frame.index_min[0] + ((corner & 1) ? frame.dims.nx - 1 : 0);
-    const double j = frame.index_min[1] + ((corner & 2) ? frame.dims.ny - 1 : 0);
-    const double k = frame.index_min[2] + ((corner & 4) ? frame.dims.nz - 1 : 0);
-    const Vec3d p = t.to_world({m[0] * i + m[1] * j + m[2] * k + m[3], m[4] * i + m[5] * j + m[6] * k + m[7],
-                                m[8] * i + m[9] * j + m[10] * k + m[11]});
-    const double v[3] = {p.x, p.y, p.z};
-    for (int a = 0; a < 3; ++a) {
-      mn[a] = std::min(mn[a], v[a]);
-      mx[a] = std::max(mx[a], v[a]);
-    }
-  }
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = static_cast<std::int64_t>(std::floor(mn[a] / h)) - 1;
-    hi[a] = static_cast<std::int64_t>(std::ceil(mx[a] / h)) + 1;
+  Vec3d mn, mx;
+  instance_world_bounds(frame, t, 0.0, mn, mx);
+  const double a[3] = {mn.x, mn.y, mn.z}, b[3] = {mx.x, mx.y, mx.z};
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = static_cast<std::int64_t>(std::floor(a[k] / h)) - 1;
+    hi[k] = static_cast<std::int64_t>(std::ceil(b[k] / h)) + 1;
   }
 }
 
@@ -244,9 +232,7 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
     const std::vector<std::uint8_t> near2 = near_medium(m.base->frame().dims, m.base->density(), 2);
     for (std::size_t n = 0; n < near2.size(); ++n)
       if (near2[n]) m.near2.push_back(n);
-    const auto& a = m.base->frame().index_to_world;
-    m.voxel_edge = std::cbrt(std::fabs(a[0] * (a[5] * a[10] - a[6] * a[9]) - a[1] * (a[4] * a[10] - a[6] * a[8]) +
-                                       a[2] * (a[4] * a[9] - a[5] * a[8])));
+    m.voxel_edge = frame_voxel_edge(m.base->frame());
     if (req.coarse) {
       const auto it = fm.alone_file.find(name);
       if (it == fm.alone_file.end())

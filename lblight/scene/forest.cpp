@@ -1,6 +1,8 @@
 #include "lblight/scene/forest.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 #include "lblight/core/error.h"
@@ -163,6 +165,34 @@ Vec3d InstanceTransform::to_model(const Vec3d& w) const {
 
 Vec3d InstanceTransform::direction_to_model(const Vec3d& d) const {
   return {cos_ * d.x + sin_ * d.y, -sin_ * d.x + cos_ * d.y, d.z};
+}
+
+Vec3d frame_to_world(const DenseFrame& f, double i, double j, double k) {
+  const auto& m = f.index_to_world;
+  i += f.index_min[0];
+  j += f.index_min[1];
+  k += f.index_min[2];
+  return {m[0] * i + m[1] * j + m[2] * k + m[3], m[4] * i + m[5] * j + m[6] * k + m[7],
+          m[8] * i + m[9] * j + m[10] * k + m[11]};
+}
+
+double frame_voxel_edge(const DenseFrame& f) {
+  const ModelGrid g{f.dims, f.index_min, f.index_to_world, {}, {}, {}};
+  const std::array<double, 3> v = g.voxel_size();
+  return std::cbrt(v[0] * v[1] * v[2]);
+}
+
+void instance_world_bounds(const DenseFrame& f, const InstanceTransform& t, double pad, Vec3d& lo, Vec3d& hi) {
+  const double big = std::numeric_limits<double>::max();
+  lo = {big, big, big};
+  hi = {-big, -big, -big};
+  for (int corner = 0; corner < 8; ++corner) {
+    const Vec3d p = t.to_world(frame_to_world(f, (corner & 1) ? f.dims.nx - 1 + pad : -pad,
+                                              (corner & 2) ? f.dims.ny - 1 + pad : -pad,
+                                              (corner & 4) ? f.dims.nz - 1 + pad : -pad));
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
 }
 
 std::vector<ForestInstance> forest_instances(const ForestSpec& f, const std::string& file) {

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "lblight/lattice/dense_grid.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/lattice/sun_coverage.h"
 #include "lblight/scene/json_reader.h"
@@ -64,6 +65,15 @@ class InstanceTransform {
   double cos_ = 1, sin_ = 0, scale_ = 1;
   Vec3d position_;
 };
+
+// World position of array node (i, j, k) of `frame` (index_min added: index_to_world acts on index
+// coordinates, as OpenVDB's transform does); fractional positions allowed.
+Vec3d frame_to_world(const DenseFrame& frame, double i, double j, double k);
+// A voxel's edge: the cube root of the product of its three edge lengths.
+double frame_voxel_edge(const DenseFrame& frame);
+// World-space box an instance's copy of `frame` covers: its node centres grown by `pad` voxels,
+// through the instance's transform.
+void instance_world_bounds(const DenseFrame& frame, const InstanceTransform& t, double pad, Vec3d& lo, Vec3d& hi);
 
 inline constexpr int kMaxForestInstances = 1'000'000;  // ~100 MB of instances
 

@@ -33,41 +33,17 @@ double mean_sigma_t(const Material& m) {
   return s;
 }
 
-double voxel_edge(const ModelGrid& g) {
-  const std::array<double, 3> v = g.voxel_size();
-  return std::cbrt(v[0] * v[1] * v[2]);
-}
-
-// World position of index coordinate (i, j, k) + index_min (index_to_world acts on index
-// coordinates, as OpenVDB's transform does).
-Vec3d index_to_world(const ModelGrid& g, double i, double j, double k) {
-  const auto& m = g.index_to_world;
-  i += g.index_min[0];
-  j += g.index_min[1];
-  k += g.index_min[2];
-  return {m[0] * i + m[1] * j + m[2] * k + m[3], m[4] * i + m[5] * j + m[6] * k + m[7],
-          m[8] * i + m[9] * j + m[10] * k + m[11]};
-}
+double voxel_edge(const ModelGrid& g) { return frame_voxel_edge(g.frame()); }
 
 // World box of an instance's grid (voxel centres grown by half a voxel), in cell indices.
 void instance_cells(const ForestModel& fm, const InstanceTransform& t, double cell, std::array<std::int64_t, 3>& lo,
                     std::array<std::int64_t, 3>& hi) {
-  const ModelGrid& g = *fm.grid;
-  double mn[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
-  double mx[3] = {-mn[0], -mn[1], -mn[2]};
-  for (int corner = 0; corner < 8; ++corner) {
-    const double i = (corner & 1) ? g.dims.nx - 0.5 : -0.5, j = (corner & 2) ? g.dims.ny - 0.5 : -0.5,
-                 k = (corner & 4) ? g.dims.nz - 0.5 : -0.5;
-    const Vec3d p = t.to_world(index_to_world(g, i, j, k));
-    const double v[3] = {p.x, p.y, p.z};
-    for (int a = 0; a < 3; ++a) {
-      mn[a] = std::min(mn[a], v[a]);
-      mx[a] = std::max(mx[a], v[a]);
-    }
-  }
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = static_cast<std::int64_t>(std::floor(mn[a] / cell + 0.5));
-    hi[a] = static_cast<std::int64_t>(std::floor(mx[a] / cell + 0.5));
+  Vec3d mn, mx;
+  instance_world_bounds(fm.grid->frame(), t, 0.5, mn, mx);
+  const double a[3] = {mn.x, mn.y, mn.z}, b[3] = {mx.x, mx.y, mx.z};
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = static_cast<std::int64_t>(std::floor(a[k] / cell + 0.5));
+    hi[k] = static_cast<std::int64_t>(std::floor(b[k] / cell + 0.5));
   }
 }
 
@@ -97,6 +73,7 @@ CoarseGrid deposit(const std::vector<ForestModel>& models, const std::vector<For
   for (const ForestInstance& in : instances) {
     const ForestModel& fm = forest_model(models, in.model);
     const ModelGrid& g = *fm.grid;
+    const DenseFrame frame = g.frame();
     const InstanceTransform t(in);
     const double w = std::pow(in.scale * voxel_edge(g) / cell, 2);
     const Material* mats[2] = {&fm.spec->material, &fm.spec->wood_material};
@@ -108,7 +85,7 @@ CoarseGrid deposit(const std::vector<ForestModel>& models, const std::vector<For
           const float rho = g.density[n];
           if (!(rho > 0.0f)) continue;
           const int kind = g.material[n] == kMaterialWood ? 1 : 0;
-          const Vec3d p = t.to_world(index_to_world(g, i, j, k));
+          const Vec3d p = t.to_world(frame_to_world(frame, i, j, k));
           const std::int64_t c[3] = {static_cast<std::int64_t>(std::floor(p.x / cell + 0.5)) - lo[0],
                                      static_cast<std::int64_t>(std::floor(p.y / cell + 0.5)) - lo[1],
                                      static_cast<std::int64_t>(std::floor(p.z / cell + 0.5)) - lo[2]};
