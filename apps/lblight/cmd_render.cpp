@@ -23,6 +23,7 @@
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
 #include "lblight/pipeline/render_bake.h"
+#include "lblight/render/scale_bar.h"
 #include "lblight/solve/plan.h"
 
 namespace fs = std::filesystem;
@@ -32,8 +33,10 @@ namespace {
 
 struct RenderArgs {
   std::string input, model, output = "render.exr", png, orbit = "three-quarter", size = "512x512", term = "all";
-  std::string material, wood_material;
-  std::vector<double> camera, look_at;
+  std::string material, wood_material, grid;
+  std::vector<double> camera, look_at, range;
+  double opacity = 0.5;
+  bool log = false;
   double fov = 35, elevation = 45, azimuth = 0, intensity = 1, ambient = 0, sky = 0, exposure = 0, step = 0.5;
   bool half = true, full_float = false, sheet = false;
   int threads = 0;
@@ -158,6 +161,8 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
   st.threads = usable_threads(a.threads);
   st.term = a.term == "direct" ? RenderTerm::Direct : a.term == "indirect" ? RenderTerm::Indirect : RenderTerm::All;
   src.light = st.term != RenderTerm::Direct;
+  src.grid = a.grid;
+  if (!a.grid.empty() && a.sheet) throw_invalid("--grid and --sheet draw different pictures: choose one");
   RunContext ctx;
   ctx.cancel = &g_interrupted;
   if (a.sheet) return run_sheet(a, src, width, height, ctx);
@@ -182,8 +187,25 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
       last = pct;
     }
   };
+  FieldSettings field;
+  if (!a.grid.empty()) {
+    field.log = a.log;
+    field.opacity = a.opacity;
+    field.step = a.step;
+    field.threads = st.threads;
+    field.progress = st.progress;
+    if (a.range.empty()) {
+      choose_field_scale(volume, field);
+    } else {
+      field.lo = a.range[0];
+      field.hi = a.range[1];
+      if (!(field.hi > field.lo) || (a.log && !(field.lo > 0)))
+        throw_invalid("--range " + message_number(field.lo) + "," + message_number(field.hi) +
+                      ": expected LOW,HIGH with LOW < HIGH (and LOW > 0 with --log)");
+    }
+  }
   const auto t0 = std::chrono::steady_clock::now();
-  const Image img = render_volume(volume, cam, st, ctx);
+  const Image img = a.grid.empty() ? render_volume(volume, cam, st, ctx) : render_field(volume, volume.field, cam, field, ctx);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::map<std::string, std::string> attrs = {
       {"lblight_version", kVersion},
@@ -195,13 +217,21 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
       {"lblight_sun", "elevation " + std::to_string(a.elevation) + " azimuth " + std::to_string(a.azimuth) +
                           " intensity " + std::to_string(a.intensity) + " ambient " + std::to_string(a.ambient) +
                           " sky " + std::to_string(a.sky)},
-      {"lblight_term", a.term},
-      {"lblight_units", "radiance; 1 = a unit sun's irradiance per steradian"}};
+      {"lblight_term", a.grid.empty() ? a.term : "grid " + a.grid},
+      {"lblight_units", a.grid.empty() ? "radiance; 1 = a unit sun's irradiance per steradian"
+                                       : "false colour (viridis) of grid '" + a.grid + "' from " + message_number(field.lo) +
+                                             " to " + message_number(field.hi) + (a.log ? " (log)" : "")}};
   const fs::path exr = a.output;
   write_file_atomically(exr, [&](const fs::path& tmp) { write_exr(tmp, width, height, img.rgba, !a.full_float, attrs); });
   fs::path png = a.png.empty() ? fs::path(exr).replace_extension(".png") : fs::path(a.png);
-  write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, width, height, tone_map(img, a.exposure)); });
-  std::cout << "rendered " << width << "x" << height << " (" << a.term << ") in " << seconds << " s on "
+  if (a.grid.empty()) {
+    write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, width, height, tone_map(img, a.exposure)); });
+  } else {
+    const Rgb8Image legend = with_scale_bar({width, height, tone_map(img, 1.0)}, field, a.grid);
+    write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, legend.width, legend.height, legend.rgb); });
+    std::cout << "grid '" << a.grid << "' from " << field.lo << " to " << field.hi << (a.log ? " (log)" : "") << "\n";
+  }
+  std::cout << "rendered " << width << "x" << height << " (" << (a.grid.empty() ? a.term : "grid " + a.grid) << ") in " << seconds << " s on "
             << (st.threads > 0 ? std::to_string(st.threads) + " thread(s)" : std::string("all cores")) << ": " << exr.string() << ", preview " << png.string() << "\n";
   return 0;
 }
@@ -231,6 +261,17 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
   cmd->add_option("--term", args->term, "direct (single-scattered sun), indirect (LB multiple scattering) or all")
       ->check(CLI::IsMember({"direct", "indirect", "all"}))
+      ->capture_default_str();
+  cmd->add_option("--grid", args->grid,
+                  "Show this grid of the file (density, B06, light, ...; a vector grid's channel mean) in false "
+                  "colour instead of lighting it, with a scale bar under the PNG")
+      ->check(kNonEmpty);
+  cmd->add_option("--range", args->range, "Colour scale LOW,HIGH of --grid (default: 0 to the 99.5th percentile)")
+      ->delimiter(',')
+      ->expected(2);
+  cmd->add_flag("--log", args->log, "Logarithmic colour scale for --grid");
+  cmd->add_option("--opacity", args->opacity, "Extinction per voxel at density 1 in --grid pictures")
+      ->check(finite_range(1e-3, 100.0))
       ->capture_default_str();
   cmd->add_option("--material", args->material, "Material preset of a relit .vdb's medium (leaf, cloud, ...)")->check(kNonEmpty);
   cmd->add_option("--wood-material", args->wood_material, "Material preset of its wood (default: the medium's wood)")->check(kNonEmpty);

@@ -56,4 +56,27 @@ std::array<double, 3> ModelGrid::voxel_size() const {
   return s;
 }
 
+std::vector<std::uint8_t> near_medium(const Dims& d, const std::vector<float>& density, int rings, bool outer_layer) {
+  std::vector<std::uint8_t> mask(d.count(), 0);
+  for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = density[i] > 0.0f;
+  const int e = outer_layer ? 0 : 1;
+  for (int r = 0; r < rings; ++r) {
+    std::vector<std::uint8_t> grown(mask.size(), 0);
+    for (int z = e; z < d.nz - e; ++z)
+      for (int y = e; y < d.ny - e; ++y)
+        for (int x = e; x < d.nx - e; ++x) {
+          bool near = false;
+          for (int dz = -1; dz <= 1 && !near; ++dz)
+            for (int dy = -1; dy <= 1 && !near; ++dy)
+              for (int dx = -1; dx <= 1 && !near; ++dx) {
+                const int i = x + dx, j = y + dy, k = z + dz;
+                near = i >= 0 && j >= 0 && k >= 0 && i < d.nx && j < d.ny && k < d.nz && mask[d.index(i, j, k)] != 0;
+              }
+          grown[d.index(x, y, z)] = near;
+        }
+    mask.swap(grown);
+  }
+  return mask;
+}
+
 }  // namespace lblight

@@ -48,6 +48,13 @@ struct DenseFrame {
   }
 };
 
+// The nodes a renderer interpolates from: the occupied nodes of `density` and their 26
+// neighbours, `rings` times over. A lattice's outer layer holds fixed boundary sources, not light
+// in the medium, so it never grows into it unless `outer_layer` (a volume cut from a sparse grid,
+// whose box edge may be occupied).
+std::vector<std::uint8_t> near_medium(const Dims& dims, const std::vector<float>& density, int rings,
+                                      bool outer_layer = false);
+
 struct ModelGrid {
   Dims dims;                               // nodes of the density grid (no margin)
   std::array<int, 3> index_min{0, 0, 0};   // index-space coordinate of node (0, 0, 0)

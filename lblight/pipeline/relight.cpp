@@ -81,25 +81,6 @@ void BaseSolutions::combine(const std::vector<std::pair<int, double>>& weights, 
     for (std::size_t i = 0; i < frame_.dims.count(); ++i) one(i);
 }
 
-std::vector<std::uint8_t> near_medium(const Dims& d, const std::vector<float>& density, int rings) {
-  std::vector<std::uint8_t> mask(d.count(), 0);
-  for (std::size_t i = 0; i < mask.size(); ++i) mask[i] = density[i] > 0.0f;
-  for (int r = 0; r < rings; ++r) {
-    std::vector<std::uint8_t> grown(mask.size(), 0);
-    for (int z = 1; z < d.nz - 1; ++z)
-      for (int y = 1; y < d.ny - 1; ++y)
-        for (int x = 1; x < d.nx - 1; ++x) {
-          bool near = false;
-          for (int dz = -1; dz <= 1 && !near; ++dz)
-            for (int dy = -1; dy <= 1 && !near; ++dy)
-              for (int dx = -1; dx <= 1 && !near; ++dx) near = mask[d.index(x + dx, y + dy, z + dz)] != 0;
-          grown[d.index(x, y, z)] = near;
-        }
-    mask.swap(grown);
-  }
-  return mask;
-}
-
 RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest& req, const RunContext& ctx) {
   RelitModel out;
   out.weights = relight_weights(req);

@@ -72,9 +72,4 @@ struct RelitModel {
 // not declare) or holds a static bake.
 RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest& request, const RunContext& ctx = {});
 
-// The occupied nodes of `density` and their 26 neighbours, `rings` times over (a renderer
-// interpolates between occupied nodes and their neighbours), never the boundary layer, whose
-// fixed source values are not light in the medium.
-std::vector<std::uint8_t> near_medium(const Dims& dims, const std::vector<float>& density, int rings);
-
 }  // namespace lblight

@@ -94,6 +94,25 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
   const nlohmann::json inspected = inspect_vdb(vdb, ctx);
   if (!has_grid(inspected, "density")) throw_invalid("no grid 'density': not an lblight bake or relit volume", {vdb.string(), {}, {}});
   RenderVolume v;
+  if (!src.grid.empty()) {
+    if (!has_grid(inspected, src.grid)) {
+      std::string names;
+      for (const auto& g : inspected.at("grids")) names += (names.empty() ? "" : ", ") + g.at("name").get<std::string>();
+      throw_invalid("no grid '" + src.grid + "' in this file; it has: " + names, {vdb.string(), {}, {}});
+    }
+    const DenseGridIn density = read_vdb_grid_dense(vdb, "density", ctx);
+    v.frame = density.frame;
+    v.density = onto(v.frame, density, 0);
+    const DenseGridIn shown = read_vdb_grid_dense(vdb, src.grid, ctx);
+    const int channels = shown.values[1].empty() ? 1 : 3;
+    v.field.assign(v.frame.dims.count(), 0.0f);
+    for (int c = 0; c < channels; ++c) {
+      const std::vector<float> part = onto(v.frame, shown, c);
+      for (std::size_t i = 0; i < part.size(); ++i) v.field[i] += part[i] / static_cast<float>(channels);
+    }
+    volume_voxel_size(v.frame);
+    return v;
+  }
   const bool relit = has_grid(inspected, "light") && !has_grid(inspected, "B00") && !has_grid(inspected, "B06");
   if (relit && src.light) {
     // The renderer removes the unscattered sun from the light: both must be for the same sun.

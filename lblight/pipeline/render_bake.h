@@ -19,10 +19,13 @@ struct RenderSource {
   std::string model;             // bake folder: which model (needed when it holds several)
   std::optional<std::string> material, wood_material;  // presets, for a relit .vdb (override the manifest's)
   bool light = true;             // load the LB light (false: direct term only)
+  std::string grid;              // --grid: this grid into RenderVolume::field (its channels' mean),
+                                 // no light and no materials needed
 };
 
 // Error(InvalidInput) naming the file when it is none of the above, when the materials are not
-// known (a relit .vdb without --material), or when a base solution the sun needs is missing.
+// known (a relit .vdb without --material), when a base solution the sun needs is missing, or when
+// the file has no grid `source.grid` (the message lists those it has).
 RenderVolume load_render_volume(const RenderSource& source, const RelightRequest& sun, const RunContext& ctx = {});
 
 }  // namespace lblight

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
+#include <functional>
 #include <limits>
 
 #include "lblight/core/error.h"
@@ -82,6 +84,55 @@ bool clip(const Dims& d, const Vec3d& o, const Vec3d& dir, double& t0, double& t
   return t1 > t0;
 }
 
+// A pinhole camera's primary rays in the volume's index space (uniform scale: directions are the
+// same as in the world).
+struct CameraRays {
+  Vec3d origin, forward, right, up;
+  double half = 0, aspect = 1;
+  int width = 0, height = 0;
+  CameraRays(const Camera& cam, const IndexSpace& space) : width(cam.width), height(cam.height) {
+    if (cam.width < 1 || cam.height < 1 || cam.width > 16384 || cam.height > 16384)
+      throw_invalid("image size " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + "; allowed: 1..16384 each");
+    if (!(cam.fov_degrees > 0 && cam.fov_degrees < 179)) throw_invalid("field of view must be in (0, 179) degrees");
+    forward = unit(sub(cam.look_at, cam.position));
+    right = cross(forward, cam.up);
+    if (dot(right, right) < 1e-20) right = cross(forward, Vec3d{0, 1, 0});
+    right = unit(right);
+    up = cross(right, forward);
+    half = std::tan(0.5 * cam.fov_degrees * kPi / 180.0);
+    aspect = static_cast<double>(cam.width) / cam.height;
+    origin = space.to_index(cam.position);
+  }
+  Vec3d dir(int px, int py) const {
+    const double sx = (2.0 * (px + 0.5) / width - 1.0) * half * aspect;
+    const double sy = (1.0 - 2.0 * (py + 0.5) / height) * half;
+    return unit(add(forward, add(mul(right, sx), mul(up, sy))));
+  }
+};
+
+// Runs row(py) for every image row on `threads` threads (0 = all cores), reporting the fraction
+// done from the calling thread and rethrowing the first failure (cancellation included).
+void for_each_row(int height, int threads, const std::function<void(double)>& progress, const RunContext& ctx,
+                  const std::function<void(int)>& row) {
+  std::atomic<int> rows{0};
+  const int n = threads > 0 ? threads : std::max(1, omp_get_max_threads());
+  std::exception_ptr failure;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(n)
+  for (int py = 0; py < height; ++py) {
+    try {
+      ctx.check_cancelled();
+      row(py);
+    } catch (...) {
+#pragma omp critical(lblight_render)
+      if (!failure) failure = std::current_exception();
+    }
+    const int done = ++rows;
+    if (progress && omp_get_thread_num() == 0) progress(static_cast<double>(done) / height);
+  }
+  if (failure) std::rethrow_exception(failure);
+  ctx.check_cancelled();
+}
+
 }  // namespace
 
 double henyey_greenstein(double g, double c) {
@@ -112,20 +163,12 @@ std::array<std::vector<float>, 3> sun_transmittance(const RenderVolume& v, const
   for (auto& c : out) c.assign(d.count(), 1.0f);
   // Only nodes a sample in the medium interpolates from: occupied ones and their neighbours (a
   // forest's box is mostly air).
-  auto needed = [&](int i, int j, int k) {
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int x = i + dx, y = j + dy, z = k + dz;
-          if (x >= 0 && y >= 0 && z >= 0 && x < d.nx && y < d.ny && z < d.nz && v.density[d.index(x, y, z)] > 0.0f) return true;
-        }
-    return false;
-  };
+  const std::vector<std::uint8_t> needed = near_medium(d, v.density, 1, true);
 #pragma omp parallel for schedule(dynamic, 1)
   for (int k = 0; k < d.nz; ++k)
     for (int j = 0; j < d.ny; ++j)
       for (int i = 0; i < d.nx; ++i) {
-        if (!needed(i, j, k)) continue;
+        if (!needed[d.index(i, j, k)]) continue;
         const Vec3d o{static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)};
         double t0, t1;
         if (!clip(d, o, dir, t0, t1)) continue;
@@ -146,83 +189,143 @@ std::array<std::vector<float>, 3> sun_transmittance(const RenderVolume& v, const
 }
 
 Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettings& st, const RunContext& ctx) {
-  if (cam.width < 1 || cam.height < 1 || cam.width > 16384 || cam.height > 16384)
-    throw_invalid("image size " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + "; allowed: 1..16384 each");
-  if (!(cam.fov_degrees > 0 && cam.fov_degrees < 179)) throw_invalid("field of view must be in (0, 179) degrees");
   if (!(st.step > 0.01 && st.step <= 2)) throw_invalid("march step must be in (0.01, 2] voxels");
   const IndexSpace space(v.frame);
+  const CameraRays rays(cam, space);
   const Dims& d = v.frame.dims;
   const bool direct = st.term != RenderTerm::Indirect, indirect = st.term != RenderTerm::Direct && !v.light[0].empty();
   const Vec3d sun = unit(st.toward_sun);
   const std::array<std::vector<float>, 3> shadow = sun_transmittance(v, sun, st.step);
-  // Camera basis; rays in index space (uniform scale: directions are the same).
-  const Vec3d forward = unit(sub(cam.look_at, cam.position));
-  Vec3d right = cross(forward, cam.up);
-  if (dot(right, right) < 1e-20) right = cross(forward, Vec3d{0, 1, 0});
-  right = unit(right);
-  const Vec3d up = cross(right, forward);
-  const double half = std::tan(0.5 * cam.fov_degrees * kPi / 180.0);
-  const double aspect = static_cast<double>(cam.width) / cam.height;
-  const Vec3d origin = space.to_index(cam.position);
   Image img;
   img.width = cam.width;
   img.height = cam.height;
   img.rgba.assign(static_cast<std::size_t>(cam.width) * cam.height * 4, 0.0f);
-  std::atomic<int> rows{0};
-  const int threads = st.threads > 0 ? st.threads : std::max(1, omp_get_max_threads());
-  std::exception_ptr failure;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (int py = 0; py < cam.height; ++py) {
-    try {
-      ctx.check_cancelled();
-      for (int px = 0; px < cam.width; ++px) {
-        const double sx = (2.0 * (px + 0.5) / cam.width - 1.0) * half * aspect;
-        const double sy = (1.0 - 2.0 * (py + 0.5) / cam.height) * half;
-        const Vec3d dir = unit(add(forward, add(mul(right, sx), mul(up, sy))));
-        double radiance[3] = {0, 0, 0}, trans[3] = {1, 1, 1};
-        double t0, t1;
-        if (clip(d, origin, dir, t0, t1)) {
-          // Cosine between the sun's travel direction (-sun) and the direction toward the eye (-dir).
-          const double cos_theta = dot(sun, dir);
-          for (double t = t0 + 0.5 * st.step; t < t1; t += st.step) {
-            const double len = std::min(st.step, t1 - (t - 0.5 * st.step));
-            const Vec3d p = add(origin, mul(dir, t));
-            const double rho = sample(d, v.density, p);
-            if (rho <= 0) continue;
-            const auto& m = v.materials[static_cast<std::size_t>(material_at(v, p))];
-            for (int c = 0; c < 3; ++c) {
-              const double sigma_t = rho * m[c].sigma_t(), sigma_s = rho * m[c].sigma_s;
-              // Light scattered toward the eye per unit length, constant over the step; the step's
-              // own attenuation integrated exactly.
-              double source = 0;
-              const double to_sun = sample(d, shadow[c], p);
-              if (direct) source += sigma_s * henyey_greenstein(m[c].g, cos_theta) * st.intensity * to_sun;
-              if (indirect) {
-                const double scattered = std::max(0.0, sample(d, v.light[c], p) - st.intensity * to_sun);
-                source += sigma_s * scattered / (4 * kPi);
-              }
-              const double a = sigma_t * len;
-              const double through = std::exp(-a);
-              const double weight = a > 1e-12 ? (1 - through) / sigma_t : len;
-              radiance[c] += trans[c] * source * weight;
-              trans[c] *= through;
+  for_each_row(cam.height, st.threads, st.progress, ctx, [&](int py) {
+    for (int px = 0; px < cam.width; ++px) {
+      const Vec3d dir = rays.dir(px, py);
+      double radiance[3] = {0, 0, 0}, trans[3] = {1, 1, 1};
+      double t0, t1;
+      if (clip(d, rays.origin, dir, t0, t1)) {
+        // Cosine between the sun's travel direction (-sun) and the direction toward the eye (-dir).
+        const double cos_theta = dot(sun, dir);
+        for (double t = t0 + 0.5 * st.step; t < t1; t += st.step) {
+          const double len = std::min(st.step, t1 - (t - 0.5 * st.step));
+          const Vec3d p = add(rays.origin, mul(dir, t));
+          const double rho = sample(d, v.density, p);
+          if (rho <= 0) continue;
+          const auto& m = v.materials[static_cast<std::size_t>(material_at(v, p))];
+          for (int c = 0; c < 3; ++c) {
+            const double sigma_t = rho * m[c].sigma_t(), sigma_s = rho * m[c].sigma_s;
+            // Light scattered toward the eye per unit length, constant over the step; the step's
+            // own attenuation integrated exactly.
+            double source = 0;
+            const double to_sun = sample(d, shadow[c], p);
+            if (direct) source += sigma_s * henyey_greenstein(m[c].g, cos_theta) * st.intensity * to_sun;
+            if (indirect) {
+              const double scattered = std::max(0.0, sample(d, v.light[c], p) - st.intensity * to_sun);
+              source += sigma_s * scattered / (4 * kPi);
             }
-            if (trans[0] < 1e-6 && trans[1] < 1e-6 && trans[2] < 1e-6) break;
+            const double a = sigma_t * len;
+            const double through = std::exp(-a);
+            const double weight = a > 1e-12 ? (1 - through) / sigma_t : len;
+            radiance[c] += trans[c] * source * weight;
+            trans[c] *= through;
           }
+          if (trans[0] < 1e-6 && trans[1] < 1e-6 && trans[2] < 1e-6) break;
         }
-        float* out = &img.rgba[(static_cast<std::size_t>(py) * cam.width + px) * 4];
-        for (int c = 0; c < 3; ++c) out[c] = static_cast<float>(radiance[c] + trans[c] * st.background[c]);
-        out[3] = static_cast<float>(1.0 - (trans[0] + trans[1] + trans[2]) / 3.0);
       }
-    } catch (...) {
-#pragma omp critical(lblight_render)
-      if (!failure) failure = std::current_exception();
+      float* out = &img.rgba[(static_cast<std::size_t>(py) * cam.width + px) * 4];
+      for (int c = 0; c < 3; ++c) out[c] = static_cast<float>(radiance[c] + trans[c] * st.background[c]);
+      out[3] = static_cast<float>(1.0 - (trans[0] + trans[1] + trans[2]) / 3.0);
     }
-    const int done = ++rows;
-    if (st.progress && omp_get_thread_num() == 0) st.progress(static_cast<double>(done) / cam.height);
+  });
+  return img;
+}
+
+std::array<float, 3> false_colour(double t) {
+  // Viridis at nine evenly spaced points, interpolated linearly (perceptually uniform, readable in
+  // grey and by colour-blind viewers).
+  static constexpr float kStops[9][3] = {{0.267f, 0.005f, 0.329f}, {0.282f, 0.141f, 0.458f}, {0.254f, 0.265f, 0.530f},
+                                         {0.207f, 0.372f, 0.553f}, {0.164f, 0.471f, 0.558f}, {0.128f, 0.567f, 0.551f},
+                                         {0.135f, 0.659f, 0.518f}, {0.478f, 0.821f, 0.318f}, {0.993f, 0.906f, 0.144f}};
+  t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) * 8.0 : 0.0;
+  const int i = std::min(7, static_cast<int>(t));
+  const double f = t - i;
+  std::array<float, 3> out{};
+  for (int c = 0; c < 3; ++c) {
+    const double srgb = kStops[i][c] + f * (kStops[i + 1][c] - kStops[i][c]);
+    out[c] = static_cast<float>(srgb <= 0.04045 ? srgb / 12.92 : std::pow((srgb + 0.055) / 1.055, 2.4));  // to linear
   }
-  if (failure) std::rethrow_exception(failure);
-  ctx.check_cancelled();
+  return out;
+}
+
+double FieldSettings::position(double value) const {
+  if (log) {
+    if (!(value > 0)) return 0.0;
+    return (std::log(value) - std::log(lo)) / (std::log(hi) - std::log(lo));
+  }
+  return (value - lo) / (hi - lo);
+}
+
+void choose_field_scale(const RenderVolume& v, FieldSettings& st) {
+  std::vector<float> values;
+  for (std::size_t i = 0; i < v.field.size(); ++i)
+    if (v.density[i] > 0.0f && std::isfinite(v.field[i]) && (!st.log || v.field[i] > 0.0f)) values.push_back(v.field[i]);
+  if (values.empty()) {
+    st.lo = st.log ? 1e-4 : 0.0;
+    st.hi = 1.0;
+    return;
+  }
+  const std::size_t top = values.size() * 995 / 1000;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(top), values.end());
+  const double hi = values[top];
+  const double lo = *std::min_element(values.begin(), values.end());
+  if (st.log) {
+    st.hi = hi;
+    st.lo = std::max(lo, hi * 1e-4);
+    if (!(st.hi > st.lo)) st.hi = 10 * st.lo;
+  } else {
+    st.lo = std::min(0.0, lo);
+    st.hi = hi > st.lo ? hi : st.lo + 1;
+  }
+}
+
+Image render_field(const RenderVolume& v, const std::vector<float>& field, const Camera& cam, const FieldSettings& st,
+                   const RunContext& ctx) {
+  if (!(st.step > 0.01 && st.step <= 2)) throw_invalid("march step must be in (0.01, 2] voxels");
+  if (!(std::isfinite(st.lo) && std::isfinite(st.hi) && st.hi > st.lo) || (st.log && !(st.lo > 0)))
+    throw_invalid("the colour scale must run from a finite low to a larger finite high value (both > 0 for a log scale)");
+  if (!(st.opacity > 0 && std::isfinite(st.opacity))) throw_invalid("opacity must be a positive number");
+  if (field.size() != v.frame.dims.count()) throw_invalid("the field does not match the volume's nodes");
+  const IndexSpace space(v.frame);
+  const CameraRays rays(cam, space);
+  const Dims& d = v.frame.dims;
+  Image img;
+  img.width = cam.width;
+  img.height = cam.height;
+  img.rgba.assign(static_cast<std::size_t>(cam.width) * cam.height * 4, 0.0f);
+  for_each_row(cam.height, st.threads, st.progress, ctx, [&](int py) {
+    for (int px = 0; px < cam.width; ++px) {
+      const Vec3d dir = rays.dir(px, py);
+      double colour[3] = {0, 0, 0}, trans = 1;
+      double t0, t1;
+      if (clip(d, rays.origin, dir, t0, t1))
+        for (double t = t0 + 0.5 * st.step; t < t1 && trans > 1e-4; t += st.step) {
+          const double len = std::min(st.step, t1 - (t - 0.5 * st.step));
+          const Vec3d p = add(rays.origin, mul(dir, t));
+          const double rho = sample(d, v.density, p);
+          if (rho <= 0) continue;
+          // Emission-absorption: each step shows its value's colour with the opacity of its density.
+          const double alpha = 1 - std::exp(-st.opacity * rho * len);
+          const std::array<float, 3> c = false_colour(st.position(sample(d, field, p)));
+          for (int k = 0; k < 3; ++k) colour[k] += trans * alpha * c[k];
+          trans *= 1 - alpha;
+        }
+      float* out = &img.rgba[(static_cast<std::size_t>(py) * cam.width + px) * 4];
+      for (int k = 0; k < 3; ++k) out[k] = static_cast<float>(colour[k]);
+      out[3] = static_cast<float>(1 - trans);
+    }
+  });
   return img;
 }
 

@@ -30,6 +30,7 @@ struct RenderVolume {
   std::vector<std::uint8_t> material;          // kMaterialMedium or kMaterialWood per node (empty: all medium)
   std::array<std::array<OpticalParams, 3>, 2> materials{};  // per material, per channel, per voxel length
   std::array<std::vector<float>, 3> light;     // the relit LB light per node (empty: no indirect term)
+  std::vector<float> field;                    // a grid shown in false colour (render_field), per node
 };
 
 struct Camera {
@@ -65,6 +66,31 @@ std::array<std::vector<float>, 3> sun_transmittance(const RenderVolume& volume, 
 
 Image render_volume(const RenderVolume& volume, const Camera& camera, const RenderSettings& settings,
                     const RunContext& ctx = {});
+
+// `lblight render --grid`: any grid in false colour. Emission-absorption through the density
+// (extinction `opacity` per voxel length at density 1), each step coloured by its value on the
+// scale [lo, hi] (linear or logarithmic); values outside are clamped to the ends.
+struct FieldSettings {
+  double lo = 0, hi = 1;
+  bool log = false;
+  double opacity = 0.5;
+  double step = 0.5;  // march step in voxels
+  int threads = 0;
+  std::function<void(double)> progress;
+  double position(double value) const;  // where `value` sits on the scale, 0..1 within it
+};
+
+// field: one value per node of the volume's frame.
+Image render_field(const RenderVolume& volume, const std::vector<float>& field, const Camera& camera,
+                   const FieldSettings& settings, const RunContext& ctx = {});
+
+// A scale for volume.field over its occupied nodes: low = 0 (the minimum when negative values
+// exist; for a log scale the smallest positive value, at most 4 decades under high), high = the
+// 99.5th percentile (so a few hot nodes do not wash the picture out).
+void choose_field_scale(const RenderVolume& volume, FieldSettings& settings);
+
+// The colour scale (viridis) at t in [0, 1] (clamped), as linear RGB (viridis's sRGB colours decoded).
+std::array<float, 3> false_colour(double t);
 
 // A camera that frames the volume's occupied box from a preset direction: "front" (from -y),
 // "side" (from +x), "top", "three-quarter" (from -x -y, 30 degrees up). Empty for an unknown name.

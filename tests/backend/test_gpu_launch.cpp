@@ -54,7 +54,7 @@ TEST_CASE("The step launch covers every interior node once, in blocks of 128 thr
   }
 }
 
-TEST_CASE("Small lattices split their systems into groups along the grid's z; large ones run all per thread",
+TEST_CASE("Small lattices split their systems into groups along the grid's z, large ones run all per thread",
           "[gpu-emulated]") {
   struct Want {
     Dims d;

@@ -106,7 +106,7 @@ Difference against_static(const std::filesystem::path& relit_vdb, const std::fil
 
 }  // namespace
 
-TEST_CASE("forest relight: a lone instance equals its model's static bake; its coarse factor is about 1", "[cli][forest]") {
+TEST_CASE("forest relight: a lone instance equals its model's static bake, its coarse factor is about 1", "[cli][forest]") {
   TempDir tmp;
   const auto t = model_translation(tmp);
   write_text(tmp / "forest.json", forest_scene("[" + instance(aligned(t, 3.0, -2.0, 0), 0) + "]"));
@@ -131,7 +131,7 @@ TEST_CASE("forest relight: a lone instance equals its model's static bake; its c
   CHECK(dc.l2 < 0.03);
 }
 
-TEST_CASE("forest relight: a quarter-turned instance equals the static bake of the turned model; other yaws are "
+TEST_CASE("forest relight: a quarter-turned instance equals the static bake of the turned model, other yaws are "
           "measured", "[cli][forest]") {
   TempDir tmp;
   const auto t = model_translation(tmp);
@@ -161,7 +161,7 @@ TEST_CASE("forest relight: a quarter-turned instance equals the static bake of t
   CHECK(r.err.find("--local") != std::string::npos);
 }
 
-TEST_CASE("forest relight: a neighbour darkens an instance; output is the same for any thread count", "[cli][forest]") {
+TEST_CASE("forest relight: a neighbour darkens an instance, output is the same for any thread count", "[cli][forest]") {
   TempDir tmp;
   const auto t = model_translation(tmp);
   // Two trees side by side along the sun's azimuth (120 degrees): the one behind is shaded.

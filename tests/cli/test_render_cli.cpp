@@ -61,7 +61,7 @@ TEST_CASE("render: a bake to EXR + PNG, camera and sun in the header, the sunlit
   for (std::size_t k = 0; k < a.size(); k += 4) CHECK(a[k] == Approx(d[k] + i[k]).margin(2e-3 * (a[k] + 1e-3)));
 }
 
-TEST_CASE("render: a relit .vdb needs its material; unknown presets and sizes are refused by name", "[cli][render]") {
+TEST_CASE("render: a relit .vdb needs its material, unknown presets and sizes are refused by name", "[cli][render]") {
   TempDir tmp;
   write_text(tmp / "scene.json", kScene);
   REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
@@ -95,4 +95,42 @@ TEST_CASE("render --sheet: one labelled tile per base solution of the bake, in o
   CHECK(svg.find(">B06 (0,0,-1)<") != std::string::npos);
   CHECK(svg.find(">B05 ") == std::string::npos);  // left out by the bake
   CHECK(svg.find("data:image/png;base64,iVBORw0KGgo") != std::string::npos);  // PNG signature
+}
+
+TEST_CASE("render --grid: any grid in false colour with a scale bar under the PNG, an unknown grid is refused with the list",
+          "[cli][render]") {
+  TempDir tmp;
+  write_text(tmp / "scene.json", kScene);
+  REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
+  const CliResult r = run_cli("render bake --grid B06 --size 64x48 -o b06.exr", tmp.path());
+  INFO(r.out << r.err);
+  REQUIRE(r.exit_code == 0);
+  CHECK(r.out.find("grid 'B06' from 0 to ") != std::string::npos);
+  int w = 0, h = 0;
+  std::map<std::string, std::string> attrs;
+  const std::vector<float> rgba = read_exr(tmp / "b06.exr", w, h, &attrs);
+  CHECK(w == 64);
+  CHECK(h == 48);
+  CHECK(attrs["lblight_term"] == "grid B06");
+  CHECK(attrs["lblight_units"].find("false colour (viridis) of grid 'B06' from 0 to ") == 0);
+  const std::string png = read_text(tmp / "b06.png");
+  REQUIRE(png.size() > 24);
+  const auto be32 = [&](std::size_t at) {
+    return (static_cast<unsigned char>(png[at]) << 24) | (static_cast<unsigned char>(png[at + 1]) << 16) |
+           (static_cast<unsigned char>(png[at + 2]) << 8) | static_cast<unsigned char>(png[at + 3]);
+  };
+  CHECK(be32(16) == 64);
+  CHECK(be32(20) > 48);  // the legend band under the picture
+  const CliResult log = run_cli("render bake --grid density --log --range 0.01,1 --size 16x16 -o d.exr", tmp.path());
+  INFO(log.out << log.err);
+  CHECK(log.exit_code == 0);
+  CHECK(log.out.find("from 0.01 to 1 (log)") != std::string::npos);
+  const CliResult bad = run_cli("render bake --grid nope --size 16x16 -o x.exr", tmp.path());
+  CHECK(bad.exit_code != 0);
+  CHECK(bad.err.find("no grid 'nope' in this file; it has: ") != std::string::npos);
+  CHECK(bad.err.find("density") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(tmp.path() / "x.exr"));
+  const CliResult range = run_cli("render bake --grid density --log --range 0,1 --size 16x16 -o y.exr", tmp.path());
+  CHECK(range.exit_code != 0);
+  CHECK(range.err.find("--range") != std::string::npos);
 }

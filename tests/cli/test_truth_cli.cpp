@@ -26,7 +26,7 @@ const char* kThinCube = R"({
 })";
 }  // namespace
 
-TEST_CASE("truth writes a bake-like output with standard errors; compare --metric l2 measures a bake against it",
+TEST_CASE("truth writes a bake-like output with standard errors, compare --metric l2 measures a bake against it",
           "[cli]") {
   TempDir tmp;
   write_text(tmp / "thin.json", kThinCube);

@@ -129,3 +129,49 @@ TEST_CASE("render: identical images for any thread count", "[render]") {
   CHECK(a.rgba == b.rgba);
   CHECK_FALSE(orbit_camera(v, "sideways", 4, 4));
 }
+
+TEST_CASE("render --grid: a uniform field shows its scale colour with the density's opacity, the scale is chosen and clamped",
+          "[render]") {
+  RenderVolume v = slab(6, 6, 10, 0.5f, {0.05, 0.3, 0.0});
+  v.field.assign(v.density.size(), 3.0f);
+  FieldSettings st;
+  st.lo = 1;
+  st.hi = 5;
+  st.opacity = 0.4;
+  const Image img = render_field(v, v.field, above(v), st);
+  // Vertical ray through 10 nodes of density 0.5, interpolated between the outer node centres (9
+  // voxel lengths): opacity 1 - exp(-0.4 * 0.5 * 9).
+  const double alpha = 1 - std::exp(-0.4 * 0.5 * 9);
+  const std::array<float, 3> c = false_colour(0.5);
+  CHECK(centre(img, 3) == Approx(alpha).epsilon(1e-4));
+  for (int k = 0; k < 3; ++k) CHECK(centre(img, k) == Approx(alpha * c[k]).epsilon(1e-4));
+  // Ends of the scale: viridis runs from dark purple to yellow, and values beyond it are clamped.
+  CHECK(false_colour(-1) == false_colour(0));
+  CHECK(false_colour(7) == false_colour(1));
+  CHECK(false_colour(1)[0] > 0.9f * false_colour(1)[1]);
+  CHECK(false_colour(0)[2] > false_colour(0)[1]);
+  CHECK(st.position(3) == Approx(0.5));
+  st.log = true;
+  st.lo = 0.01;
+  st.hi = 100;
+  CHECK(st.position(1) == Approx(0.5));
+  CHECK(st.position(0) == 0.0);
+  // Automatic scale over the occupied nodes only: the hot node outside the medium is ignored.
+  RenderVolume w = slab(10, 10, 10, 0.0f, {0.05, 0.3, 0.0});
+  w.field.assign(w.density.size(), 0.0f);
+  for (int i = 0; i < 1000; ++i) {
+    if (i % 2) continue;
+    w.density[static_cast<std::size_t>(i)] = 1.0f;
+    w.field[static_cast<std::size_t>(i)] = static_cast<float>(i) / 1000.0f;
+  }
+  w.field[1] = 1e6f;
+  FieldSettings a;
+  choose_field_scale(w, a);
+  CHECK(a.lo == 0.0);
+  CHECK(a.hi == Approx(0.996).margin(0.004));
+  a.log = true;
+  choose_field_scale(w, a);
+  CHECK(a.lo == Approx(0.002));  // the smallest positive value, 2.7 decades under high (within the 4-decade cap)
+  st.hi = st.lo;
+  CHECK_THROWS(render_field(v, v.field, above(v), st));
+}

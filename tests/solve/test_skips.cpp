@@ -106,7 +106,7 @@ TEST_CASE("The needed directions match a brute-force sweep of suns", "[skips][su
   }
 }
 
-TEST_CASE("A fixed sun needs its three face directions; free rotation needs all", "[skips][sun]") {
+TEST_CASE("A fixed sun needs its three face directions, free rotation needs all", "[skips][sun]") {
   SunConstraints c;
   c.fixed_toward_sun = toward_sun_from_angles(35, 20);
   c.rotation = InstanceRotation::None;
