@@ -9,6 +9,7 @@ packages=(
   liblog4cplus-dev  # OpenVDB's logger: lblight silences OpenVDB's own warnings and reports its errors itself
   nlohmann-json3-dev libspdlog-dev catch2
   python3-openvdb   # OpenVDB's own Python reader, used by a test to reopen bake outputs
+  python3-jsonschema  # an independent JSON Schema validator for the scene schema test
   clang-14 libclang-rt-14-dev libomp-14-dev  # the sanitizer build and the fuzzers (scripts/sanitize.sh)
 )
 # Optional: Debian's hipcc (~13 s, 66 MB download) lets the tests compile the GPU backend as HIP.

@@ -1,4 +1,5 @@
 #include "lblight/scene/forest.h"
+#include "lblight/scene/scene_fields.h"
 
 #include <algorithm>
 #include <cmath>
@@ -59,7 +60,7 @@ struct Random {
 
 ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models, InstanceRotation rotation) {
   r.expect_object();
-  r.only_keys({"instances", "generator", "coarse", "comment"});
+  check_fields(r, scene_object("forest"));
   ForestSpec f;
   if (r.has("coarse")) {
     const JsonReader c = r.child("coarse");
@@ -67,9 +68,10 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
       f.coarse = c.json().get<bool>();
     } else {
       c.expect_object();
-      c.only_keys({"cell_size", "tolerance", "comment"});
-      f.cell_size = c.number_or("cell_size", 0.0, 1e-4, 1e6, "1e-4..1e6 world units (or leave it out: 2 x the coarsest model voxel x the largest scale)");
-      f.coarse_tolerance = c.number_or("tolerance", f.coarse_tolerance, 1e-8, 0.5, "1e-8..0.5");
+      const ObjectSpec& o = scene_object("forest.coarse");
+      check_fields(c, o);
+      f.cell_size = number_field(c, o, "cell_size");
+      f.coarse_tolerance = number_field(c, o, "tolerance");
     }
   }
   if (r.has("instances")) {
@@ -78,15 +80,16 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
     for (std::size_t i = 0; i < list.json().size(); ++i) {
       const JsonReader e = list.element(i);
       e.expect_object();
-      e.only_keys({"model", "position", "yaw_degrees", "scale"});
+      const ObjectSpec& o = scene_object("forest.instance");
+      check_fields(e, o);
       ForestInstance inst;
       inst.model = model_name(e, "model", models);
       const JsonReader p = e.child("position");
       if (!p.json().is_array() || p.json().size() != 3) p.fail("expected [x, y, z], found " + JsonReader::describe(p.json()));
       for (int k = 0; k < 3; ++k) inst.position[k] = p.element(k).as_number(-1e9, 1e9, "-1e9..1e9 world units");
-      inst.yaw_degrees = e.number_or("yaw_degrees", 0.0, -3600.0, 3600.0, "-3600..3600 degrees");
+      inst.yaw_degrees = number_field(e, o, "yaw_degrees");
       check_yaw(e, "yaw_degrees", inst.yaw_degrees, rotation);
-      inst.scale = e.number_or("scale", 1.0, 1e-3, 1e3, "1e-3..1e3");
+      inst.scale = number_field(e, o, "scale");
       f.instances.push_back(inst);
       f.instance_paths.push_back(e.path());
     }
@@ -94,7 +97,8 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
   if (r.has("generator")) {
     const JsonReader g = r.child("generator");
     g.expect_object();
-    g.only_keys({"area", "height", "count", "density", "min_spacing", "yaw_degrees", "scale", "models", "seed"});
+    const ObjectSpec& o = scene_object("forest.generator");
+    check_fields(g, o);
     ForestGenerator gen;
     gen.json_path = g.path();
     const JsonReader a = g.child("area");
@@ -102,13 +106,13 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
       a.fail("expected [x_min, y_min, x_max, y_max], found " + JsonReader::describe(a.json()));
     for (int k = 0; k < 4; ++k) gen.area[k] = a.element(k).as_number(-1e9, 1e9, "-1e9..1e9 world units");
     if (!(gen.area[2] > gen.area[0] && gen.area[3] > gen.area[1])) a.fail("x_max must be > x_min and y_max > y_min");
-    gen.height = g.number_or("height", 0.0, -1e9, 1e9, "-1e9..1e9 world units");
+    gen.height = number_field(g, o, "height");
     const double area = (gen.area[2] - gen.area[0]) * (gen.area[3] - gen.area[1]);
     if (g.has("count") == g.has("density")) g.fail("give either count or density (instances per unit area)");
     if (g.has("count")) {
-      gen.count = static_cast<int>(g.integer_or("count", 0, 1, kMaxForestInstances));
+      gen.count = static_cast<int>(integer_field(g, o, "count"));
     } else {
-      const double density = g.number("density", 1e-12, 1e9, "> 0 instances per unit area");
+      const double density = number_field(g, o, "density");
       const double n = std::round(density * area);
       if (n < 1 || n > kMaxForestInstances)
         g.fail("density x area gives " + JsonReader::describe(n) + " instances; allowed: 1.." +
@@ -116,7 +120,7 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
                "density");
       gen.count = static_cast<int>(n);
     }
-    gen.min_spacing = g.number_or("min_spacing", 0.0, 0.0, 1e9, ">= 0 world units");
+    gen.min_spacing = number_field(g, o, "min_spacing");
     gen.yaw_degrees = range(g, "yaw_degrees", {0, 0}, -3600.0, 3600.0, "-3600..3600 degrees");
     if (rotation == InstanceRotation::None && (yawed(gen.yaw_degrees[0]) || gen.yaw_degrees[0] != gen.yaw_degrees[1]))
       g.fail("yaw_degrees " + JsonReader::describe(nlohmann::json(gen.yaw_degrees)) +
@@ -124,14 +128,15 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
                  "solutions rotated copies need; set instance_rotation to \"yaw\" or use [0, 0]",
              "yaw_degrees");
     gen.scale = range(g, "scale", {1, 1}, 1e-3, 1e3, "1e-3..1e3");
-    gen.seed = static_cast<std::uint64_t>(g.integer_or("seed", 1, 0, (1ll << 62)));
+    gen.seed = static_cast<std::uint64_t>(integer_field(g, o, "seed"));
     const JsonReader ms = g.child("models");
     if (!ms.json().is_array() || ms.json().empty()) ms.fail("expected a non-empty list of {\"model\": name, \"weight\": w}");
     for (std::size_t i = 0; i < ms.json().size(); ++i) {
       const JsonReader e = ms.element(i);
       e.expect_object();
-      e.only_keys({"model", "weight"});
-      gen.models.push_back({model_name(e, "model", models), e.number_or("weight", 1.0, 1e-12, 1e12, "> 0")});
+      const ObjectSpec& w = scene_object("forest.model_weight");
+      check_fields(e, w);
+      gen.models.push_back({model_name(e, "model", models), number_field(e, w, "weight")});
     }
     f.generator = gen;
   }

@@ -124,18 +124,6 @@ JsonReader JsonReader::element(std::size_t index) const {
   return JsonReader(j_->at(index), path_ + "/" + std::to_string(index), file_);
 }
 
-void JsonReader::only_keys(std::initializer_list<const char*> allowed) const {
-  expect_object();
-  for (auto it = j_->begin(); it != j_->end(); ++it) {
-    bool ok = false;
-    for (const char* a : allowed) ok = ok || it.key() == a;
-    if (ok) continue;
-    std::string list;
-    for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-    fail("unknown field '" + it.key() + "'; allowed fields here: " + list, it.key());
-  }
-}
-
 std::string JsonReader::string(const std::string& key) const {
   const JsonReader c = child(key);
   if (!c.json().is_string()) c.fail("expected a string, found " + describe(c.json()));

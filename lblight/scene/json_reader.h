@@ -28,7 +28,6 @@ class JsonReader {
   JsonReader child(const std::string& key) const;       // required member
   JsonReader element(std::size_t index) const;           // array element
   void expect_object() const;
-  void only_keys(std::initializer_list<const char*> allowed) const;
 
   std::string string(const std::string& key) const;                         // required
   std::string string_or(const std::string& key, const std::string& fallback) const;

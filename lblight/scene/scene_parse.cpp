@@ -10,6 +10,7 @@
 #include "lblight/scene/json_reader.h"
 #include "lblight/lattice/dense_grid.h"
 #include "lblight/scene/scene.h"
+#include "lblight/scene/scene_fields.h"
 
 namespace lblight {
 
@@ -145,7 +146,7 @@ Material read_material(const JsonReader& r) {
   if (!r.json().is_object())
     r.fail("a material is a preset name or an object with preset/sigma_a/sigma_s/g/absorb, found " +
            JsonReader::describe(r.json()));
-  r.only_keys({"preset", "name", "sigma_a", "sigma_s", "g", "absorb"});
+  check_fields(r, scene_object("material"));
   Material m;
   const bool has_preset = r.has("preset");
   if (has_preset) {
@@ -170,14 +171,15 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
   d.json_path = r.path();
   const std::string type = r.string("type");
   if (type == "procedural") {
-    r.only_keys({"type", "shape", "resolution", "seed", "size", "density_scale"});
+    const ObjectSpec& o = scene_object("density.procedural");
+    check_fields(r, o);
     d.type = SourceType::Procedural;
-    d.procedural.shape = r.string_or("shape", "cloud");
+    d.procedural.shape = string_field(r, o, "shape");
     if (d.procedural.shape != "cloud" && d.procedural.shape != "plant" && d.procedural.shape != "box")
       r.fail("unknown procedural shape '" + d.procedural.shape + "'; allowed: cloud, plant, box", "shape");
-    d.procedural.resolution = static_cast<int>(r.integer_or("resolution", 48, 4, 1024));
-    d.procedural.seed = static_cast<std::uint64_t>(r.integer_or("seed", 1, 0, (1ll << 53)));
-    d.procedural.size = r.number_or("size", 1.0, 1e-9, 1e9, "a positive length");
+    d.procedural.resolution = static_cast<int>(integer_field(r, o, "resolution"));
+    d.procedural.seed = static_cast<std::uint64_t>(integer_field(r, o, "seed"));
+    d.procedural.size = number_field(r, o, "size");
     if (d.procedural.size / d.procedural.resolution < kMinNodeSize)
       r.fail("size " + message_number(d.procedural.size) + " at resolution " +
                  std::to_string(d.procedural.resolution) + " makes nodes narrower than " +
@@ -185,20 +187,21 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
                  "allowed: size >= resolution x " + message_number(kMinNodeSize),
              "size");
   } else if (type == "vdb") {
-    r.only_keys({"type", "path", "grid", "wood_grid", "density_scale"});
+    const ObjectSpec& o = scene_object("density.vdb");
+    check_fields(r, o);
     d.type = SourceType::Vdb;
-    const std::filesystem::path p = r.string("path");
+    const std::filesystem::path p = string_field(r, o, "path");
     d.vdb.path = p.is_absolute() ? p : dir / p;
-    d.vdb.grid = r.string_or("grid", "density");
-    d.vdb.wood_grid = r.string_or("wood_grid", "");
+    d.vdb.grid = string_field(r, o, "grid");
+    d.vdb.wood_grid = string_field(r, o, "wood_grid");
   } else if (type == "mesh") {
-    r.only_keys({"type", "path", "resolution", "supersample", "leaf_patterns", "wood_patterns", "bounds", "fill",
-                 "density_scale"});
+    const ObjectSpec& o = scene_object("density.mesh");
+    check_fields(r, o);
     d.type = SourceType::Mesh;
-    const std::filesystem::path p = r.string("path");
+    const std::filesystem::path p = string_field(r, o, "path");
     d.mesh.path = p.is_absolute() ? p : dir / p;
-    d.mesh.resolution = static_cast<int>(r.integer_or("resolution", 64, 4, 2048));
-    d.mesh.supersample = static_cast<int>(r.integer_or("supersample", 8, 1, 64));
+    d.mesh.resolution = static_cast<int>(integer_field(r, o, "resolution"));
+    d.mesh.supersample = static_cast<int>(integer_field(r, o, "supersample"));
     for (const char* key : {"leaf_patterns", "wood_patterns"}) {
       if (!r.has(key)) continue;
       const JsonReader list = r.child(key);
@@ -212,7 +215,7 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     }
     if (r.has("bounds")) {
       const JsonReader b = r.child("bounds");
-      b.only_keys({"min", "max"});
+      check_fields(b, scene_object("density.mesh.bounds"));
       for (const char* key : {"min", "max"}) {
         const JsonReader v = b.child(key);
         if (!v.json().is_array() || v.json().size() != 3) v.fail("expected [x, y, z]");
@@ -224,18 +227,19 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
         if (!(d.mesh.bounds_max[i] > d.mesh.bounds_min[i])) b.fail("bounds max must exceed min on every axis");
       d.mesh.has_bounds = true;
     }
-    d.mesh.fill = r.string_or("fill", "none");
+    d.mesh.fill = string_field(r, o, "fill");
     if (d.mesh.fill != "none" && d.mesh.fill != "parity" && d.mesh.fill != "winding")
       r.fail("unknown fill mode '" + d.mesh.fill + "'; allowed: none, parity, winding", "fill");
   } else {
     r.fail("unknown density type '" + type + "'; allowed: procedural, vdb, mesh", "type");
   }
-  d.density_scale = r.number_or("density_scale", 1.0, 0.0, 1e30, "density_scale >= 0");
+  d.density_scale = number_field(r, scene_object("density.procedural"), "density_scale");  // the same in every source
   return d;
 }
 
 ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
-  r.only_keys({"name", "density", "material", "wood_material", "margin", "crop"});
+  const ObjectSpec& o = scene_object("model");
+  check_fields(r, o);
   ModelSpec m;
   m.json_path = r.path();
   m.name = r.string("name");
@@ -244,8 +248,8 @@ ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
   m.density = read_density(r.child("density"), dir);
   m.material = read_material(r.child("material"));
   m.wood_material = r.has("wood_material") ? read_material(r.child("wood_material")) : default_wood_for(m.material);
-  m.margin = static_cast<int>(r.integer_or("margin", 1, 1, 64));
-  m.crop = r.boolean_or("crop", true);
+  m.margin = static_cast<int>(integer_field(r, o, "margin"));
+  m.crop = boolean_field(r, o, "crop");
   return m;
 }
 
@@ -260,43 +264,46 @@ Vec3d read_vec3(const JsonReader& r) {
 Vec3d read_sun(const JsonReader& sun) {
   sun.expect_object();
   if (sun.has("direction")) {
-    sun.only_keys({"direction"});
+    check_fields(sun, scene_object("sun.direction"));
     Vec3d d = read_vec3(sun.child("direction"));
     const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     if (!(len > 0)) sun.fail("sun direction must be non-zero", "direction");
     return {d.x / len, d.y / len, d.z / len};
   }
-  sun.only_keys({"elevation", "azimuth"});
-  const double el = sun.number("elevation", -90, 90, "-90..90 degrees");
-  const double az = sun.number("azimuth", -360, 360, "-360..360 degrees");
+  const ObjectSpec& o = scene_object("sun.angles");
+  check_fields(sun, o);
+  const double el = number_field(sun, o, "elevation");
+  const double az = number_field(sun, o, "azimuth");
   return toward_sun_from_angles(el, az);
 }
 
 // Base lighting: which solutions to bake, either listed ("all", "0,1,5-7", [0, 6]) or "auto":
 // the ones the declared sun range, fixed sun and instance rotation can select (docs/model.md sec. 4).
 void read_base_lighting(const JsonReader& r, LightingSpec& l) {
-  r.only_keys({"mode", "solutions", "sun_range", "sun", "instance_rotation", "ambient", "ambient_from_sum"});
+  const ObjectSpec& o = scene_object("lighting.base");
+  check_fields(r, o);
   l.mode = LightingMode::Base;
   SunConstraints& c = l.sun_constraints;
   if (r.has("sun_range")) {
     const JsonReader sr = r.child("sun_range");
     sr.expect_object();
-    sr.only_keys({"min_elevation", "max_elevation"});
-    c.min_elevation = sr.number_or("min_elevation", -90.0, -90.0, 90.0, "-90..90 degrees");
-    c.max_elevation = sr.number_or("max_elevation", 90.0, -90.0, 90.0, "-90..90 degrees");
+    const ObjectSpec& range = scene_object("sun_range");
+    check_fields(sr, range);
+    c.min_elevation = number_field(sr, range, "min_elevation");
+    c.max_elevation = number_field(sr, range, "max_elevation");
     if (c.max_elevation < c.min_elevation) sr.fail("max_elevation must be >= min_elevation", "max_elevation");
   }
   if (r.has("sun")) {
     if (r.has("sun_range")) r.fail("give either a fixed sun or a sun_range, not both", "sun");
     c.fixed_toward_sun = read_sun(r.child("sun"));
   }
-  const std::string rot = r.string_or("instance_rotation", "none");
+  const std::string rot = string_field(r, o, "instance_rotation");
   if (rot == "any") c.rotation = InstanceRotation::Any;
   else if (rot == "yaw") c.rotation = InstanceRotation::Yaw;
   else if (rot == "none") c.rotation = InstanceRotation::None;
   else r.fail("unknown instance_rotation '" + rot + "'; allowed: none, yaw (about the vertical axis), any", "instance_rotation");
-  c.ambient = r.boolean_or("ambient", true);
-  l.ambient_from_sum = r.boolean_or("ambient_from_sum", true);
+  c.ambient = boolean_field(r, o, "ambient");
+  l.ambient_from_sum = boolean_field(r, o, "ambient_from_sum");
 
   const bool constrained =
       r.has("sun_range") || r.has("sun") || r.has("ambient") || r.has("instance_rotation");
@@ -339,11 +346,12 @@ LightingSpec read_lighting(const JsonReader& r) {
   if (mode == "base") {
     read_base_lighting(r, l);
   } else if (mode == "static") {
-    r.only_keys({"mode", "sun", "intensity", "ambient"});
+    const ObjectSpec& o = scene_object("lighting.static");
+    check_fields(r, o);
     l.mode = LightingMode::Static;
     l.toward_sun = read_sun(r.child("sun"));
-    l.intensity = r.number_or("intensity", 1.0, 0.0, 1e30, "intensity >= 0");
-    l.ambient = r.number_or("ambient", 0.0, 0.0, 1e30, "ambient >= 0");
+    l.intensity = number_field(r, o, "intensity");
+    l.ambient = number_field(r, o, "ambient");
   } else {
     r.fail("unknown lighting mode '" + mode + "'; allowed: base, static", "mode");
   }
@@ -351,8 +359,8 @@ LightingSpec read_lighting(const JsonReader& r) {
 }
 
 SolverSpec read_solver(const JsonReader& r) {
-  r.only_keys({"iterations", "tolerance", "max_iterations", "check_interval", "precision", "method", "model",
-               "calibration"});
+  const ObjectSpec& o = scene_object("solver");
+  check_fields(r, o);
   SolverSpec s;
   if (r.has("iterations")) {
     const JsonReader it = r.child("iterations");
@@ -370,28 +378,27 @@ SolverSpec read_solver(const JsonReader& r) {
       it.fail("expected \"auto\", \"paper\" or a step count, found " + JsonReader::describe(it.json()));
     }
   }
-  s.tolerance = r.number_or("tolerance", 1e-4, 1e-15, 0.5, "0 < tolerance <= 0.5");
+  s.tolerance = number_field(r, o, "tolerance");
   if (r.has("tolerance") && !(s.tolerance > 0)) r.fail("tolerance must be > 0", "tolerance");
-  s.max_iterations = static_cast<int>(r.integer_or("max_iterations", 0, 1, 100000000));
-  s.check_interval = static_cast<int>(r.integer_or("check_interval", 0, 1, 100000));
-  const std::string method = r.string_or("method", "plain");
+  s.max_iterations = static_cast<int>(integer_field(r, o, "max_iterations"));
+  s.check_interval = static_cast<int>(integer_field(r, o, "check_interval"));
+  const std::string method = string_field(r, o, "method");
   if (const auto m = parse_solver_method(method)) s.method = *m;
   else r.fail("unknown solver method '" + method + "'; allowed: " + kSolverMethodNames, "method");
   if (s.method != SolverMethod::Plain && s.mode != IterationMode::Auto)
     r.fail("method " + method + " needs iterations \"auto\" (it stops on the error estimate)", "method");
-  const std::string prec = r.string_or("precision", "float32");
+  const std::string prec = string_field(r, o, "precision");
   if (prec == "float32") s.precision = Precision::Float32;
   else if (prec == "float64") s.precision = Precision::Float64;
   else if (prec == "float16") s.precision = Precision::Float16;
   else r.fail("unknown precision '" + prec + "'; allowed: float32, float64, float16", "precision");
-  const std::string model = r.string_or("model", "paper");
+  const std::string model = string_field(r, o, "model");
   if (model == "calibrated") s.model.calibrated = true;
   else if (model != "paper") r.fail("unknown LB model '" + model + "'; allowed: paper, calibrated", "model");
   if (r.has("calibration")) {
     if (!s.model.calibrated) r.fail("calibration applies to \"model\": \"calibrated\"", "calibration");
     const JsonReader c = r.child("calibration");
-    c.only_keys({"path_length", "phase_moment", "delta_m", "isotropic_ambient", "remove_absorbed", "voxel_average",
-                 "diffusion_match"});  // kCalibrationNames
+    check_fields(c, scene_object("solver.calibration"));  // kCalibrationNames
     for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k)
       *calibration_switch(s.model, k) = c.boolean_or(kCalibrationNames[k], *calibration_switch(s.model, k));
   }
@@ -402,11 +409,12 @@ SolverSpec read_solver(const JsonReader& r) {
 // takes the defaults.
 OutputSpec read_output(const JsonReader& r) {
   r.expect_object();
-  r.only_keys({"vdb", "lbh", "full_box", "half"});
+  const ObjectSpec& o = scene_object("output");
+  check_fields(r, o);
   OutputSpec out;
-  out.vdb = r.boolean_or("vdb", true);
-  out.full_box = r.boolean_or("full_box", false);
-  out.half = r.boolean_or("half", false);
+  out.vdb = boolean_field(r, o, "vdb");
+  out.full_box = boolean_field(r, o, "full_box");
+  out.half = boolean_field(r, o, "half");
   if (!r.has("lbh")) {
     if (!out.vdb) r.fail("nothing to write: vdb is false and no lbh output is asked for", "vdb");
     return out;
@@ -419,9 +427,10 @@ OutputSpec read_output(const JsonReader& r) {
   }
   if (!lbh.json().is_object())
     r.fail("expected true, false or an object {\"threshold\": number, \"relative\": bool}", "lbh");
-  lbh.only_keys({"threshold", "relative", "coefficients"});
+  const ObjectSpec& lo = scene_object("output.lbh");
+  check_fields(lbh, lo);
   out.lbh.enabled = true;
-  out.lbh.relative = lbh.boolean_or("relative", true);
+  out.lbh.relative = boolean_field(lbh, lo, "relative");
   out.lbh.threshold = out.lbh.relative ? lbh.number_or("threshold", 0.01, 0.0, 1.0, "0 <= threshold <= 1 (a fraction "
                                                                                      "of each solution's maximum)")
                                        : lbh.number_or("threshold", 0.01, 0.0, 1e30, "threshold >= 0");
@@ -442,7 +451,7 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   const nlohmann::json j = JsonReader::parse_strict(text, file.string());
   const JsonReader root(j, "", file.string());
   root.expect_object();
-  root.only_keys({"version", "name", "models", "lighting", "solver", "output", "forest", "$schema", "comment"});
+  check_fields(root, scene_object("scene"));
   Scene scene;
   scene.file = file;
   scene.dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
