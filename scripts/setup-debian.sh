@@ -12,8 +12,9 @@ packages=(
   python3-jsonschema  # an independent JSON Schema validator for the scene schema test
   clang-14 libclang-rt-14-dev libomp-14-dev  # the sanitizer build and the fuzzers (scripts/sanitize.sh)
 )
-# Optional: Debian's hipcc (~13 s, 66 MB download) lets the tests compile the GPU backend as HIP.
-optional=(hipcc)
+# Optional: Debian's hipcc (~13 s, 66 MB download) lets the tests compile the GPU backend as HIP;
+# blender (~20 s, 75 MB) runs the add-on test (tools/blender) headless.
+optional=(hipcc blender)
 
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 missing=()
@@ -38,5 +39,5 @@ fi
 if ((${#missing_optional[@]})); then
   echo "setup: installing optional ${missing_optional[*]}"
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing_optional[@]}" ||
-    echo "setup: optional packages unavailable; the HIP compile check will be skipped"
+    echo "setup: optional packages unavailable; the HIP compile check or the Blender add-on test will be skipped"
 fi

@@ -159,7 +159,10 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
   st.intensity = a.intensity;
   st.step = a.step;
   st.threads = usable_threads(a.threads);
-  st.term = a.term == "direct" ? RenderTerm::Direct : a.term == "indirect" ? RenderTerm::Indirect : RenderTerm::All;
+  st.term = a.term == "direct"     ? RenderTerm::Direct
+            : a.term == "indirect" ? RenderTerm::Indirect
+            : a.term == "lb"       ? RenderTerm::Lb
+                                   : RenderTerm::All;
   src.light = st.term != RenderTerm::Direct;
   src.grid = a.grid;
   if (!a.grid.empty() && a.sheet) throw_invalid("--grid and --sheet draw different pictures: choose one");
@@ -259,8 +262,10 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--look-at", args->look_at, "Point the camera looks at x,y,z (with --camera)")->delimiter(',')->expected(3);
   cmd->add_option("--fov", args->fov, "Vertical field of view in degrees (with --camera)")->check(finite_range(1.0, 170.0))->capture_default_str();
   cmd->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
-  cmd->add_option("--term", args->term, "direct (single-scattered sun), indirect (LB multiple scattering) or all")
-      ->check(CLI::IsMember({"direct", "indirect", "all"}))
+  cmd->add_option("--term", args->term,
+                  "direct (single-scattered sun), indirect (LB multiple scattering), all (both), or lb (the whole LB "
+                  "light scattered isotropically: what the Blender add-on renders)")
+      ->check(CLI::IsMember({"direct", "indirect", "all", "lb"}))
       ->capture_default_str();
   cmd->add_option("--grid", args->grid,
                   "Show this grid of the file (density, B06, light, ...; a vector grid's channel mean) in false "

@@ -193,9 +193,12 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
   const IndexSpace space(v.frame);
   const CameraRays rays(cam, space);
   const Dims& d = v.frame.dims;
-  const bool direct = st.term != RenderTerm::Indirect, indirect = st.term != RenderTerm::Direct && !v.light[0].empty();
+  const bool direct = st.term == RenderTerm::Direct || st.term == RenderTerm::All;
+  const bool indirect = (st.term == RenderTerm::Indirect || st.term == RenderTerm::All) && !v.light[0].empty();
+  const bool whole_lb = st.term == RenderTerm::Lb && !v.light[0].empty();
   const Vec3d sun = unit(st.toward_sun);
-  const std::array<std::vector<float>, 3> shadow = sun_transmittance(v, sun, st.step);
+  std::array<std::vector<float>, 3> shadow;
+  if (direct || indirect) shadow = sun_transmittance(v, sun, st.step);
   Image img;
   img.width = cam.width;
   img.height = cam.height;
@@ -219,12 +222,13 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
             // Light scattered toward the eye per unit length, constant over the step; the step's
             // own attenuation integrated exactly.
             double source = 0;
-            const double to_sun = sample(d, shadow[c], p);
+            const double to_sun = direct || indirect ? sample(d, shadow[c], p) : 0.0;
             if (direct) source += sigma_s * henyey_greenstein(m[c].g, cos_theta) * st.intensity * to_sun;
             if (indirect) {
               const double scattered = std::max(0.0, sample(d, v.light[c], p) - st.intensity * to_sun);
               source += sigma_s * scattered / (4 * kPi);
             }
+            if (whole_lb) source += sigma_s * sample(d, v.light[c], p) / (4 * kPi);
             const double a = sigma_t * len;
             const double through = std::exp(-a);
             const double weight = a > 1e-12 ? (1 - through) / sigma_t : len;

@@ -39,7 +39,11 @@ struct Camera {
   int width = 512, height = 512;
 };
 
-enum class RenderTerm { Direct, Indirect, All };
+// Direct: the sun single-scattered with HG and shadows; Indirect: the LB light beyond the
+// unscattered sun, isotropic; All: both. Lb: the whole LB light (unscattered sun included)
+// scattered isotropically, no HG term - what the Blender add-on's material renders
+// (tools/blender), for comparing the two.
+enum class RenderTerm { Direct, Indirect, All, Lb };
 
 struct RenderSettings {
   Vec3d toward_sun{0, 0, 1};

@@ -175,3 +175,18 @@ TEST_CASE("render --grid: a uniform field shows its scale colour with the densit
   st.hi = st.lo;
   CHECK_THROWS(render_field(v, v.field, above(v), st));
 }
+
+TEST_CASE("render --term lb: the whole LB light scattered isotropically, whatever the sun", "[render]") {
+  RenderVolume v = slab(21, 21, 11, 0.8f, {0.03, 0.12, 0.2});
+  for (auto& c : v.light) c.assign(v.density.size(), 2.0f);
+  RenderSettings st;
+  st.term = RenderTerm::Lb;
+  st.toward_sun = {0.3, 0.2, 1.0};
+  const Image a = render_volume(v, above(v), st);
+  const double sigma_t = 0.8 * 0.15, sigma_s = 0.8 * 0.12;
+  CHECK(centre(a, 1) == Approx(sigma_s * 2.0 / (4 * kPi) * (1 - std::exp(-sigma_t * 10)) / sigma_t).epsilon(0.005));
+  st.intensity = 7;  // no direct term and nothing taken out
+  st.toward_sun = {0, 0, 1};
+  const Image b = render_volume(v, above(v), st);
+  CHECK(a.rgba == b.rgba);
+}
