@@ -200,7 +200,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       Real* next = slot.scratch.data();
       const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
       const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
-#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+#pragma omp parallel for collapse(2) schedule(dynamic, 8) num_threads(threads_)
       for (int z = 1; z < d_.nz - 1; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
           const std::size_t base = d_.index(0, y, z);
@@ -464,7 +464,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 #pragma omp parallel num_threads(threads_)
     {
       const ScopedFlushDenormals ftz(flush_denormals_);
-#pragma omp for collapse(2) schedule(static)
+#pragma omp for collapse(2) schedule(dynamic, 8)
       for (int z = 1; z < d_.nz - 1; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
           const std::size_t r = static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1);
