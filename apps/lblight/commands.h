@@ -34,5 +34,6 @@ Command add_relight_command(CLI::App& app, const GlobalOptions& global);
 Command add_render_command(CLI::App& app, const GlobalOptions& global);
 Command add_sun_weights_command(CLI::App& app, const GlobalOptions& global);
 Command add_schema_command(CLI::App& app, const GlobalOptions& global);
+Command add_simulate_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace lblight::cli

@@ -2,6 +2,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/scene/gas_source.h"
 #include "lblight/scene/mesh_source.h"
 #include "lblight/scene/procedural.h"
 #include "lblight/scene/validate.h"
@@ -20,6 +21,8 @@ ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const RunC
       break;
     }
     case SourceType::Mesh: g = load_mesh_density(model.density.mesh, {scene.file.string(), model.density.json_path, {}}, ctx);
+      break;
+    case SourceType::Gas: g = make_gas_density(model.density.gas, {scene.file.string(), model.density.json_path, {}}, ctx);
       break;
   }
   // NaN stays NaN through the scale and is reported below with its voxel.

@@ -57,12 +57,6 @@ double fbm(double x, double y, double z, std::uint64_t seed, int octaves) {
   return sum / norm;
 }
 
-std::array<double, 16> centred_transform(const Dims& d, double h, bool on_ground) {
-  // voxel centre (i, j, k) -> world; x/y centred on the origin, z centred or starting at 0
-  const double ox = -0.5 * (d.nx - 1) * h, oy = -0.5 * (d.ny - 1) * h;
-  const double oz = on_ground ? 0.5 * h : -0.5 * (d.nz - 1) * h;
-  return {h, 0, 0, ox, 0, h, 0, oy, 0, 0, h, oz, 0, 0, 0, 1};
-}
 
 ModelGrid make_cloud(const ProceduralSource& s) {
   const int r = s.resolution;
@@ -201,6 +195,13 @@ ModelGrid make_box(const ProceduralSource& s) {
 }
 
 }  // namespace
+
+std::array<double, 16> centred_transform(const Dims& d, double h, bool on_ground) {
+  // voxel centre (i, j, k) -> world; x/y centred on the origin, z centred or starting at 0
+  const double ox = -0.5 * (d.nx - 1) * h, oy = -0.5 * (d.ny - 1) * h;
+  const double oz = on_ground ? 0.5 * h : -0.5 * (d.nz - 1) * h;
+  return {h, 0, 0, ox, 0, h, 0, oy, 0, 0, h, oz, 0, 0, 0, 1};
+}
 
 ModelGrid make_procedural(const ProceduralSource& src, const Location& where) {
   const double r = src.resolution;

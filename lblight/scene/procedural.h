@@ -13,4 +13,8 @@ namespace lblight {
 // `where` locates the source in messages (a grid too large for this machine's memory).
 ModelGrid make_procedural(const ProceduralSource& src, const Location& where = {});
 
+// Index to world for a box of nodes at spacing h: x and y centred on the origin, z centred or
+// (on_ground) starting half a node above z = 0.
+std::array<double, 16> centred_transform(const Dims& dims, double h, bool on_ground);
+
 }  // namespace lblight

@@ -26,7 +26,7 @@ inline constexpr int kSceneVersion = 1;
 // instances take a few MiB).
 inline constexpr std::uint64_t kMaxSceneBytes = 64ull << 20;
 
-enum class SourceType { Procedural, Vdb, Mesh };
+enum class SourceType { Procedural, Vdb, Mesh, Gas };
 
 struct ProceduralSource {
   std::string shape = "cloud";  // cloud | plant
@@ -51,11 +51,30 @@ struct MeshSource {
   std::string fill = "none";  // none | parity | winding (closed solids; docs/voxelization.md)
 };
 
+// Smoke simulated by the gas solver (lblight/fluid, docs/fluid.md): a box of `resolution` nodes
+// (x, y, z), `size` world units along its longest edge, standing on z = 0; a floor with a round
+// inlet, the other faces open. The density a bake lights is the smoke of frame `frame`.
+struct GasSource {
+  std::array<int, 3> resolution{32, 32, 64};
+  double size = 1.0;
+  double tau = 0.56, tau_temperature = 0.52, tau_smoke = 0.51;
+  double ambient_temperature = 28.0;  // degrees
+  double buoyancy = 2e-5;             // lattice force per node per degree above ambient ([Wei2004] eq. 16)
+  std::array<double, 2> inlet_center{0, 0};  // world x, y
+  double inlet_radius = 0.1;          // world units
+  double inlet_speed = 0.05;          // lattice units per step (Mach = speed x sqrt(3))
+  double inlet_temperature = 40.0;
+  double inlet_smoke = 1.0;
+  int frames = 8, steps_per_frame = 50;
+  int frame = 0;                      // the frame a bake lights (0 = the last)
+};
+
 struct DensitySpec {
   SourceType type = SourceType::Procedural;
   ProceduralSource procedural;
   VdbSource vdb;
   MeshSource mesh;
+  GasSource gas;
   double density_scale = 1.0;
   std::string json_path;  // where in the scene file, for messages
 };

@@ -42,6 +42,7 @@ const char* to_string(SourceType type) {
     case SourceType::Procedural: return "procedural";
     case SourceType::Vdb: return "vdb";
     case SourceType::Mesh: return "mesh";
+    case SourceType::Gas: return "gas";
   }
   return "?";
 }
@@ -230,8 +231,47 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     d.mesh.fill = string_field(r, o, "fill");
     if (d.mesh.fill != "none" && d.mesh.fill != "parity" && d.mesh.fill != "winding")
       r.fail("unknown fill mode '" + d.mesh.fill + "'; allowed: none, parity, winding", "fill");
+  } else if (type == "gas") {
+    const ObjectSpec& o = scene_object("density.gas");
+    check_fields(r, o);
+    d.type = SourceType::Gas;
+    GasSource& g = d.gas;
+    if (r.has("resolution")) {
+      const JsonReader v = r.child("resolution");
+      if (!v.json().is_array() || v.json().size() != 3) v.fail("expected [nx, ny, nz], found " + JsonReader::describe(v.json()));
+      for (std::size_t k = 0; k < 3; ++k) {
+        const JsonReader e = v.element(k);
+        if (!e.json().is_number_integer() || e.json().get<long long>() < 4 || e.json().get<long long>() > 512)
+          e.fail("gas resolution " + JsonReader::describe(e.json()) + "; allowed: an integer 4..512");
+        g.resolution[k] = e.json().get<int>();
+      }
+    }
+    g.size = number_field(r, o, "size");
+    g.tau = number_field(r, o, "tau");
+    g.tau_temperature = number_field(r, o, "tau_temperature");
+    g.tau_smoke = number_field(r, o, "tau_smoke");
+    g.ambient_temperature = number_field(r, o, "ambient_temperature");
+    g.buoyancy = number_field(r, o, "buoyancy");
+    g.frames = static_cast<int>(integer_field(r, o, "frames"));
+    g.steps_per_frame = static_cast<int>(integer_field(r, o, "steps_per_frame"));
+    g.frame = static_cast<int>(integer_field(r, o, "frame"));
+    if (g.frame > g.frames) r.fail("frame " + std::to_string(g.frame) + " is after the last; allowed: 1.." + std::to_string(g.frames) + " (0 = the last)", "frame");
+    if (r.has("inlet")) {
+      const JsonReader in = r.child("inlet");
+      const ObjectSpec& io = scene_object("density.gas.inlet");
+      check_fields(in, io);
+      if (in.has("center")) {
+        const JsonReader c = in.child("center");
+        if (!c.json().is_array() || c.json().size() != 2) c.fail("expected [x, y], found " + JsonReader::describe(c.json()));
+        for (std::size_t k = 0; k < 2; ++k) g.inlet_center[k] = c.element(k).as_number(-1e9, 1e9, "a finite coordinate");
+      }
+      g.inlet_radius = number_field(in, io, "radius");
+      g.inlet_speed = number_field(in, io, "speed");
+      g.inlet_temperature = number_field(in, io, "temperature");
+      g.inlet_smoke = number_field(in, io, "smoke");
+    }
   } else {
-    r.fail("unknown density type '" + type + "'; allowed: procedural, vdb, mesh", "type");
+    r.fail("unknown density type '" + type + "'; allowed: procedural, vdb, mesh, gas", "type");
   }
   d.density_scale = number_field(r, scene_object("density.procedural"), "density_scale");  // the same in every source
   return d;

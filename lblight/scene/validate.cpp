@@ -24,6 +24,7 @@ Location source_location(const ModelSpec& m, const Scene& scene, const ModelGrid
 std::string source_name(const ModelSpec& m) {
   if (m.density.type == SourceType::Vdb) return "grid '" + m.density.vdb.grid + "' of " + m.density.vdb.path.string();
   if (m.density.type == SourceType::Mesh) return "mesh " + m.density.mesh.path.string();
+  if (m.density.type == SourceType::Gas) return "gas smoke";
   return "procedural " + m.density.procedural.shape;
 }
 }  // namespace
