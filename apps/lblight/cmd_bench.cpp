@@ -1,5 +1,7 @@
 // lblight bench: lattice updates per second and the fraction of measured memory bandwidth.
 #include <CLI/CLI.hpp>
+
+#include <chrono>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
@@ -13,6 +15,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/relative_gap.h"
 #include "lblight/solve/throughput.h"
+#include "lblight/fluid/gas_solver.h"
 
 namespace lblight::cli {
 namespace {
@@ -27,8 +30,31 @@ struct BenchArgs {
   int systems = 1;
   std::string shape = "uniform";
   double bandwidth_mib = 0;
-  bool json = false;
+  bool json = false, gas = false;
 };
+
+// The gas solver (CPU, OpenMP) on a periodic size^3 box with a warm blob: node updates per second
+// after a 2-step warm-up, timed over about a second.
+nlohmann::json bench_gas(int size, int threads) {
+  fluid::GasSettings s;
+  s.dims = {size, size, size};
+  s.buoyancy = 1e-4;
+  s.threads = threads;
+  fluid::GasSolver g(s);
+  g.step(2);
+  int steps = 2;
+  double seconds = 0;
+  for (;;) {
+    const auto t0 = std::chrono::steady_clock::now();
+    g.step(steps);
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (seconds > 1.0 || steps > 1 << 20) break;
+    steps *= 2;
+  }
+  const double ups = static_cast<double>(s.dims.count()) * steps / seconds;
+  return {{"lattice", {size, size, size}}, {"steps", steps}, {"seconds", seconds}, {"updates_per_second", ups},
+          {"bytes_per_update", fluid::kGasBytesPerUpdate}, {"achieved_gbs", ups * fluid::kGasBytesPerUpdate / 1e9}};
+}
 
 int run_bench(const BenchArgs& a) {
   auto backend = make_backend({a.backend, usable_threads(a.threads), a.device});
@@ -63,6 +89,8 @@ int run_bench(const BenchArgs& a) {
                              {"state_within_cache", cache > 0 && run.state_bytes <= 2.0 * static_cast<double>(cache)}});
     }
   }
+  if (a.gas)
+    for (int size : a.sizes) out["gas_runs"].push_back(bench_gas(size, usable_threads(a.threads)));
   // The probe runs before and after the lattice runs; the larger figure is the reference, so the
   // fraction is never flattered by a momentarily slow probe on a shared machine.
   const double after = backend->measure_copy_bandwidth(probe);
@@ -113,6 +141,22 @@ int run_bench(const BenchArgs& a) {
         any_error = true;
       }
     }
+  std::string gas_text;
+  if (a.gas) {
+    Table gas({"gas lattice", "steps", "seconds", "M node updates/s", "GB/s", "of copy bw"});
+    for (auto& run : out["gas_runs"]) {
+      const double fraction = run["achieved_gbs"].get<double>() * 1e9 / bandwidth;
+      run["fraction_of_copy_bandwidth"] = fraction;
+      char ups[32], gbs[32], frac[32];
+      std::snprintf(ups, sizeof ups, "%.1f", run["updates_per_second"].get<double>() / 1e6);
+      std::snprintf(gbs, sizeof gbs, "%.1f", run["achieved_gbs"].get<double>());
+      std::snprintf(frac, sizeof frac, "%.2f", fraction);
+      gas.add({std::to_string(run["lattice"][0].get<int>()) + "^3", std::to_string(run["steps"].get<int>()),
+               format_seconds(run["seconds"].get<double>()), ups, gbs, frac});
+    }
+    gas_text = "gas solver (CPU; flow + temperature + smoke per update, " + std::to_string(fluid::kGasBytesPerUpdate) +
+               " bytes):\n" + gas.str();
+  }
   if (a.json) {
     std::cout << out.dump(2) << "\n";
   } else {
@@ -127,6 +171,7 @@ int run_bench(const BenchArgs& a) {
       std::cout << "(c): the state is at most twice the " << format_bytes(static_cast<double>(cache))
                 << " cache, so that run is timed partly against the cache, not the memory\n";
     if (any_error) std::cout << "storage error after the same steps from the same start:\n" << errors.str();
+    std::cout << gas_text;
   }
   return 0;
 }
@@ -156,6 +201,7 @@ Command add_bench_command(CLI::App& app, const GlobalOptions&) {
                   "largest cache)")
       ->check(finite_range(1.0, 65536.0));
   cmd->add_flag("--json", a->json, "Print JSON");
+  cmd->add_flag("--gas", a->gas, "Also time the gas solver (docs/fluid.md) at each --size on the CPU");
   return {cmd, [a] { return run_bench(*a); }};
 }
 

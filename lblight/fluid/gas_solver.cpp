@@ -61,6 +61,10 @@ GasSolver::GasSolver(const GasSettings& settings) : s_(settings) {
   if (!why.empty()) throw_invalid(why);
   n_ = s_.dims.count();
   if (s_.solid.empty()) s_.solid.assign(n_, 0);
+  any_solid_ = std::any_of(s_.solid.begin(), s_.solid.end(), [](std::uint8_t v) { return v != 0; });
+  for (int m = 0; m < kQ; ++m)
+    offset_[m] = static_cast<std::ptrdiff_t>(cx(m)) + static_cast<std::ptrdiff_t>(cy(m)) * s_.dims.nx +
+                 static_cast<std::ptrdiff_t>(cz(m)) * s_.dims.nx * s_.dims.ny;
   f_.assign(kQ * n_, 0.0f);
   t_.assign(kQ7 * n_, 0.0f);
   c_.assign(kQ7 * n_, 0.0f);
@@ -154,6 +158,11 @@ void GasSolver::stream(const std::vector<float>& post, std::vector<float>& next,
       for (int x = 0; x < d.nx; ++x) {
         const std::size_t i = d.index(x, y, z);
         if (s_.solid[i]) continue;
+        // Interior nodes of an obstacle-free box: every source is a plain neighbour.
+        if (!any_solid_ && x > 0 && y > 0 && z > 0 && x < d.nx - 1 && y < d.ny - 1 && z < d.nz - 1) {
+          for (int m = 0; m < Q; ++m) next[m * n_ + i] = post[m * n_ + i - offset_[m]];
+          continue;
+        }
         for (int m = 0; m < Q; ++m) {
           int p[3] = {x - cx(m), y - cy(m), z - cz(m)};
           int leaving = -1;  // the face (0..5) the source lies beyond

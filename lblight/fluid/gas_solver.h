@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -14,6 +15,11 @@
 namespace lblight::fluid {
 
 enum class FaceType { Periodic, Wall, Open };
+
+// DRAM bytes one node update moves (for `lblight bench --gas`): the collision reads 19 + 7 + 7
+// floats and writes as many post-collision values plus 6 doubles (rho, u, temperature, smoke);
+// streaming reads the 33 post-collision floats and writes 33; the obstacle byte twice.
+inline constexpr int kGasBytesPerUpdate = 4 * 33 * 4 + 6 * 8 + 2;
 
 // A velocity inlet on the floor (the -z face): fluid enters the box through the patch
 // [x0, x1] x [y0, y1] (node indices, inclusive) at speed `speed` upward, with temperature
@@ -80,6 +86,8 @@ class GasSolver {
   std::vector<float> f_, f_post_, t_, t_post_, c_, c_post_;  // [m * n + node]
   std::vector<double> rho_, ux_, uy_, uz_, temp_, smoke_;  // per node, as of the last collision
   long long steps_ = 0;
+  bool any_solid_ = false;
+  std::array<std::ptrdiff_t, 19> offset_{};  // node index of x + e_m minus that of x
 };
 
 }  // namespace lblight::fluid
