@@ -54,7 +54,7 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
     GasSource src = m->density.gas;
     const int frames = a.frames > 0 ? a.frames : src.frames;
     const Location where{scene.file.string(), m->density.json_path, {}};
-    fluid::GasSettings check = gas_settings(src, where);  // refuses before anything is written
+    const Dims dims{src.resolution[0], src.resolution[1], src.resolution[2]};
     const auto t0 = std::chrono::steady_clock::now();
     run_gas(src, frames, where, ctx, [&](int f, const fluid::GasSolver& solver) {
       const ModelGrid density = gas_density(src, solver);
@@ -69,10 +69,14 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
         for (float& x : c) x = static_cast<float>(x * h);
       nlohmann::json meta = {{"lblight_version", kVersion}, {"lblight_frame", f}, {"lblight_steps", f * src.steps_per_frame},
                              {"lblight_model", m->name}};
-      const std::vector<DenseGridOut> grids = {
+      std::vector<float> obstacle;
+      for (std::uint8_t b : solver.settings().solid) obstacle.push_back(b ? 1.0f : 0.0f);
+      std::vector<DenseGridOut> grids = {
           {"density", &density.density, nullptr, true, {{"lblight_meaning", "smoke concentration / inlet smoke, clamped to [0, 1]"}}},
           {"temperature", &t, nullptr, false, {{"lblight_units", "degrees"}}},
           {"velocity", nullptr, &v, false, {{"lblight_units", "world units per lattice step"}}}};
+      if (!src.obstacles.empty())
+        grids.push_back({"obstacle", &obstacle, nullptr, false, {{"lblight_meaning", "1 on solid (bounce-back) nodes"}}});
       const std::string name = frame_file(m->name, f);
       write_vdb(out.path(name), density.frame(), grids, meta);
       double smoke = 0;
@@ -82,9 +86,8 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
       spdlog::info("simulate: {} frame {}/{} ({} steps)", m->name, f, frames, f * src.steps_per_frame);
     });
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const double updates = static_cast<double>(check.dims.count()) * frames * src.steps_per_frame;
-    std::cout << m->name << ": " << frames << " frame(s) of " << check.dims.nx << "x" << check.dims.ny << "x"
-              << check.dims.nz << " nodes in " << seconds << " s (" << updates / seconds / 1e6
+    const double updates = static_cast<double>(dims.count()) * frames * src.steps_per_frame;
+    std::cout << m->name << ": " << frames << " frame(s) of " << dims.nx << "x" << dims.ny << "x" << dims.nz << " nodes in " << seconds << " s (" << updates / seconds / 1e6
               << " M fluid node updates per second)\n";
   }
   write_file_atomically(out.path("simulation.json"), record.dump(1) + "\n");
@@ -100,7 +103,8 @@ Command add_simulate_command(CLI::App& app, const GlobalOptions& global) {
   CLI::App* cmd = app.add_subcommand(
       "simulate",
       "Run the scene's gas sources ([Wei2004]: D3Q19 BGK flow with buoyancy, smoke and temperature carried by it) and "
-      "write every frame as OUT/<model>.NNNN.vdb (density = smoke, temperature, velocity) with simulation.json. "
+      "write every frame as OUT/<model>.NNNN.vdb (density = smoke, temperature, velocity, obstacle when there are "
+      "obstacles) with simulation.json. "
       "`bake` lights the frame the source names. docs/fluid.md.");
   cmd->add_option("scene", args->scene, "Scene file (.json)")->required();
   cmd->add_option("-o,--output", args->output, "Output folder")->required()->check(kNonEmpty);

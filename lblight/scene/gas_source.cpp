@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "lblight/scene/mesh_source.h"
 #include "lblight/scene/procedural.h"
 
 namespace lblight {
@@ -48,6 +49,40 @@ fluid::GasSettings gas_settings(const GasSource& s, const Location& where) {
                       "], radius " + message_number(s.inlet_radius) + ") covers no node of the floor, whose nodes are " +
                       message_number(h) + " apart; allowed: a centre inside the floor and a radius of at least half that",
                   where);
+  // Obstacles: each mesh voxelised onto the gas nodes (bounds = the box, in the mesh's own units).
+  if (!s.obstacles.empty()) g.solid.assign(g.dims.count(), 0);
+  for (std::size_t k = 0; k < s.obstacles.size(); ++k) {
+    const GasObstacle& o = s.obstacles[k];
+    const Location at{where.file, where.json_path + "/obstacles/" + std::to_string(k), {}};
+    MeshSource src;
+    src.path = o.path;
+    src.resolution = std::max({g.dims.nx, g.dims.ny, g.dims.nz});
+    src.supersample = 4;
+    src.fill = o.fill;
+    src.has_bounds = true;
+    const double lo[3] = {m[3] - 0.5 * h, m[7] - 0.5 * h, m[11] - 0.5 * h};
+    const int n[3] = {g.dims.nx, g.dims.ny, g.dims.nz};
+    for (int a = 0; a < 3; ++a) {
+      src.bounds_min[a] = (lo[a] - o.position[a]) / o.scale;
+      src.bounds_max[a] = (lo[a] + n[a] * h - o.position[a]) / o.scale;
+    }
+    const ModelGrid v = voxelize_mesh_source(src, 0, at, {}).voxels.grid;
+    if (!(v.dims == g.dims)) throw_invalid("the obstacle's voxels do not line up with the gas nodes", at);
+    std::size_t solid = 0;
+    for (std::size_t i = 0; i < v.density.size(); ++i)
+      if (v.density[i] >= 0.5f && (o.part == "all" || v.material[i] == kMaterialWood)) g.solid[i] = 1, ++solid;
+    if (solid == 0)
+      throw_invalid("obstacle " + o.path.string() + " fills no node of the gas (" + o.part +
+                        " parts, at least half a node each); allowed: a mesh inside the box, large against its " +
+                        message_number(h) + " spacing",
+                    at);
+  }
+  // The inlet must blow into gas, not into an obstacle.
+  if (!g.solid.empty())
+    for (int y = 0; y < g.dims.ny; ++y)
+      for (int x = 0; x < g.dims.nx; ++x)
+        if (in.mask[static_cast<std::size_t>(y) * g.dims.nx + x] && g.solid[g.dims.index(x, y, 0)])
+          in.mask[static_cast<std::size_t>(y) * g.dims.nx + x] = 0;
   const std::string why = fluid::check_gas_settings(g);
   if (!why.empty()) throw_invalid(why, where);
   return g;

@@ -51,6 +51,16 @@ struct MeshSource {
   std::string fill = "none";  // none | parity | winding (closed solids; docs/voxelization.md)
 };
 
+// A mesh the gas flows around: placed at `position` with `scale` (mesh units to world), its
+// nodes solid where at least half their volume is touched (all of it, or its wood parts only).
+struct GasObstacle {
+  std::filesystem::path path;
+  std::array<double, 3> position{0, 0, 0};
+  double scale = 1.0;
+  std::string part = "all";   // all | wood
+  std::string fill = "none";  // none | parity | winding, as a mesh source's
+};
+
 // Smoke simulated by the gas solver (lblight/fluid, docs/fluid.md): a box of `resolution` nodes
 // (x, y, z), `size` world units along its longest edge, standing on z = 0; a floor with a round
 // inlet, the other faces open. The density a bake lights is the smoke of frame `frame`.
@@ -67,6 +77,7 @@ struct GasSource {
   double inlet_smoke = 1.0;
   int frames = 8, steps_per_frame = 50;
   int frame = 0;                      // the frame a bake lights (0 = the last)
+  std::vector<GasObstacle> obstacles;
 };
 
 struct DensitySpec {

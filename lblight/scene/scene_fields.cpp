@@ -130,7 +130,15 @@ std::vector<ObjectSpec> build() {
                 number("buoyancy", -1e-2, 1e-2, 2e-5, "lattice force per node per degree above ambient, |H g| <= 0.01"),
                 custom("inlet", ref("density.gas.inlet"), "the inlet in the floor"),
                 integer("frames", 1, 10000, 8, "1..10000"), integer("steps_per_frame", 1, 1000000, 50, "1..1000000"),
-                integer("frame", 0, 10000, 0, "the frame a bake lights, 1..frames (0 = the last)"), density_scale()}});
+                integer("frame", 0, 10000, 0, "the frame a bake lights, 1..frames (0 = the last)"),
+                custom("obstacles", array_of(ref("density.gas.obstacle")), "meshes the gas flows around"),
+                density_scale()}});
+  t.push_back({"density.gas.obstacle", "A mesh the gas flows around (bounce-back nodes).",
+               {required(text("path", nullptr, {}, "an .obj file, relative to the scene file")),
+                custom("position", numbers(3, -1e9, 1e9), "[x, y, z] world: where the mesh's origin goes"),
+                number("scale", 1e-6, 1e6, 1.0, "mesh units to world units"),
+                text("part", "all", {"all", "wood"}, "all, wood (the parts classified as wood)"),
+                text("fill", "none", {"none", "parity", "winding"}, "none, parity, winding")}});
   t.push_back({"density.gas.inlet", "A round inlet in the floor, blowing upward.",
                {custom("center", numbers(2, -1e9, 1e9), "[x, y] world"),
                 number("radius", 1e-9, 1e9, 0.1, "world units (at least one node)"),

@@ -256,6 +256,30 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
     g.steps_per_frame = static_cast<int>(integer_field(r, o, "steps_per_frame"));
     g.frame = static_cast<int>(integer_field(r, o, "frame"));
     if (g.frame > g.frames) r.fail("frame " + std::to_string(g.frame) + " is after the last; allowed: 1.." + std::to_string(g.frames) + " (0 = the last)", "frame");
+    if (r.has("obstacles")) {
+      const JsonReader list = r.child("obstacles");
+      if (!list.json().is_array()) list.fail("expected a list of obstacles, found " + JsonReader::describe(list.json()));
+      const ObjectSpec& ob = scene_object("density.gas.obstacle");
+      for (std::size_t k = 0; k < list.json().size(); ++k) {
+        const JsonReader e = list.element(k);
+        check_fields(e, ob);
+        GasObstacle o;
+        const std::filesystem::path p = string_field(e, ob, "path");
+        o.path = p.is_absolute() ? p : dir / p;
+        if (e.has("position")) {
+          const JsonReader v = e.child("position");
+          if (!v.json().is_array() || v.json().size() != 3) v.fail("expected [x, y, z], found " + JsonReader::describe(v.json()));
+          for (std::size_t a = 0; a < 3; ++a) o.position[a] = v.element(a).as_number(-1e9, 1e9, "a finite coordinate");
+        }
+        o.scale = number_field(e, ob, "scale");
+        o.part = string_field(e, ob, "part");
+        if (o.part != "all" && o.part != "wood") e.fail("unknown part '" + o.part + "'; allowed: all, wood", "part");
+        o.fill = string_field(e, ob, "fill");
+        if (o.fill != "none" && o.fill != "parity" && o.fill != "winding")
+          e.fail("unknown fill mode '" + o.fill + "'; allowed: none, parity, winding", "fill");
+        g.obstacles.push_back(o);
+      }
+    }
     if (r.has("inlet")) {
       const JsonReader in = r.child("inlet");
       const ObjectSpec& io = scene_object("density.gas.inlet");
