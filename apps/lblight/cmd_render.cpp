@@ -166,6 +166,24 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
   src.light = st.term != RenderTerm::Direct;
   src.grid = a.grid;
   if (!a.grid.empty() && a.sheet) throw_invalid("--grid and --sheet draw different pictures: choose one");
+  if (a.grid.empty() && (!a.range.empty() || a.log))
+    throw_invalid("--range and --log set the colour scale of a --grid picture; add --grid NAME or leave them out");
+  if (!a.range.empty() && !(std::isfinite(a.range[0]) && std::isfinite(a.range[1])))
+    throw_invalid("--range " + message_number(a.range[0]) + "," + message_number(a.range[1]) +
+                  ": expected two finite numbers LOW,HIGH");
+  // Both outputs checked before the render: a refusal after it would leave the first file behind.
+  const fs::path exr_out = a.sheet && a.output == "render.exr" ? fs::path("sheet.svg") : fs::path(a.output);
+  const fs::path png_out = a.png.empty() ? fs::path(exr_out).replace_extension(".png") : fs::path(a.png);
+  for (const fs::path& p : a.sheet ? std::vector<fs::path>{exr_out} : std::vector<fs::path>{exr_out, png_out}) {
+    const fs::path folder = p.has_parent_path() ? p.parent_path() : fs::path(".");
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec)) throw_invalid("the folder to write into does not exist", {p.string(), {}, {}});
+    if (fs::is_directory(p, ec)) throw_invalid("is a folder; name a file to write", {p.string(), {}, {}});
+  }
+  if (!a.sheet && fs::path(exr_out).lexically_normal() == fs::path(png_out).lexically_normal())
+    throw_invalid("the EXR and the PNG preview would be the same file; name the EXR with -o x.exr (the preview "
+                  "becomes x.png) or give --png another name",
+                  {exr_out.string(), {}, {}});
   RunContext ctx;
   ctx.cancel = &g_interrupted;
   if (a.sheet) return run_sheet(a, src, width, height, ctx);

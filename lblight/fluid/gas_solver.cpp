@@ -16,7 +16,7 @@ using d3q19::cy;
 using d3q19::cz;
 using d3q19::kQ;
 
-constexpr double kMinTauMargin = 3e-3;  // nu = (tau - 1/2) / 3 >= 1e-3
+constexpr double kMinTau = 0.503;  // nu = (tau - 1/2) / 3 >= 1e-3
 constexpr double kMaxMach = 0.3;
 const double kSoundSpeed = 1.0 / std::sqrt(3.0);
 
@@ -29,12 +29,13 @@ std::string check_gas_settings(const GasSettings& s) {
   if (d.nx < 1 || d.ny < 1 || d.nz < 1 || d.count() > (std::size_t{1} << 31))
     return "gas domain " + std::to_string(d.nx) + "x" + std::to_string(d.ny) + "x" + std::to_string(d.nz) +
            " nodes; allowed: at least 1 per axis, at most 2^31 nodes";
-  if (!(s.tau > 0.5 + kMinTauMargin) || !(s.tau <= 5.0))
+  if (!(s.tau >= kMinTau) || !(s.tau <= 5.0))
     return "relaxation time tau = " + message_number(s.tau) +
-           " is unstable or too viscous; allowed: 0.503 < tau <= 5 (viscosity (tau - 1/2)/3 from 1e-3 to 1.5)";
+           " is unstable or too viscous; allowed: 0.503 <= tau <= 5 (viscosity (tau - 1/2)/3 from 1e-3 to 1.5)";
   for (const double t : {s.tau_temperature, s.tau_smoke})
-    if (!(t > 0.5 + kMinTauMargin) || !(t <= 5.0))
-      return "scalar relaxation time " + message_number(t) + "; allowed: 0.503 < tau <= 5 (diffusivity (tau - 1/2)/4)";
+    if (!(t >= kMinTau) || !(t <= 5.0))
+      return "scalar relaxation time (tau_temperature, tau_smoke) " + message_number(t) +
+             "; allowed: 0.503 <= tau <= 5 (diffusivity (tau - 1/2)/4)";
   for (const double f : s.force)
     if (!std::isfinite(f) || std::fabs(f) > 1e-2) return "body force " + message_number(f) + " per node; allowed: |F| <= 0.01";
   if (!std::isfinite(s.buoyancy) || std::fabs(s.buoyancy) > 1.0 || !std::isfinite(s.t_ambient))

@@ -20,6 +20,8 @@ enum class FaceType { Periodic, Wall, Open };
 // floats and writes as many post-collision values plus 6 doubles (rho, u, temperature, smoke);
 // streaming reads the 33 post-collision floats and writes 33; the obstacle byte twice.
 inline constexpr int kGasBytesPerUpdate = 4 * 33 * 4 + 6 * 8 + 2;
+// Memory per node: two copies of 33 floats, 6 doubles, the obstacle byte.
+inline constexpr int kGasBytesPerNode = 2 * 33 * 4 + 6 * 8 + 1;
 
 // A velocity inlet on the floor (the -z face): fluid enters the box through the patch
 // [x0, x1] x [y0, y1] (node indices, inclusive) at speed `speed` upward, with temperature
@@ -46,7 +48,7 @@ struct GasSettings {
   int threads = 0;                        // 0 = all cores; results do not depend on it
 };
 
-// The stability and accuracy rules, checked before anything runs: tau above 1/2 with a margin
+// The stability and accuracy rules, checked before anything runs: tau at least 0.503
 // (nu >= 1e-3: a smaller one lets the populations go negative), scalar taus likewise, the inlet's
 // Mach number (speed sqrt(3)) at most 0.3 (BGK is a low-Mach model), sizes and masks consistent.
 // Returns an empty string when the settings are fine, else what is wrong and what is allowed.

@@ -160,7 +160,18 @@ void StagedDirectory::commit() {
   if (!old.empty()) fs::remove_all(old, ec);
 }
 
-void write_file_atomically(const fs::path& file, const std::function<void(const fs::path& temporary)>& write) {
+void write_file_atomically(const fs::path& given, const std::function<void(const fs::path& temporary)>& write) {
+  std::error_code sec;
+  const fs::file_status st = fs::status(given, sec);  // through symlinks
+  if (fs::is_directory(st)) throw_invalid("is a folder; name a file to write", {given.string(), {}, {}});
+  if (fs::exists(st) && !fs::is_regular_file(st)) {
+    // A device or a pipe (/dev/null, a FIFO) is written through; renaming over it would replace
+    // the device node with a file (as root, /dev/null itself).
+    write(given);
+    return;
+  }
+  // A symlink to a file: the file it names is replaced, the link stays.
+  const fs::path file = fs::is_symlink(fs::symlink_status(given, sec)) && fs::exists(st) ? fs::canonical(given, sec) : given;
   remove_dead_leftovers(file.parent_path().empty() ? fs::path(".") : file.parent_path(),
                         "." + file.filename().string() + ".tmp-");
   const fs::path tmp = file.parent_path() / ("." + file.filename().string() + ".tmp-" + unique_suffix());

@@ -275,6 +275,10 @@ void choose_field_scale(const RenderVolume& v, FieldSettings& st) {
   std::vector<float> values;
   for (std::size_t i = 0; i < v.field.size(); ++i)
     if (v.density[i] > 0.0f && std::isfinite(v.field[i]) && (!st.log || v.field[i] > 0.0f)) values.push_back(v.field[i]);
+  // No medium (a gas frame without smoke): the scale of every node's value rather than 0..1.
+  if (values.empty())
+    for (float x : v.field)
+      if (std::isfinite(x) && (!st.log || x > 0.0f)) values.push_back(x);
   if (values.empty()) {
     st.lo = st.log ? 1e-4 : 0.0;
     st.hi = 1.0;

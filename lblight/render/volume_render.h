@@ -90,7 +90,8 @@ Image render_field(const RenderVolume& volume, const std::vector<float>& field, 
 
 // A scale for volume.field over its occupied nodes: low = 0 (the minimum when negative values
 // exist; for a log scale the smallest positive value, at most 4 decades under high), high = the
-// 99.5th percentile (so a few hot nodes do not wash the picture out).
+// 99.5th percentile (so a few hot nodes do not wash the picture out). With no occupied node,
+// over all nodes.
 void choose_field_scale(const RenderVolume& volume, FieldSettings& settings);
 
 // The colour scale (viridis) at t in [0, 1] (clamped), as linear RGB (viridis's sRGB colours decoded).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "lblight/core/system_info.h"
 #include "lblight/scene/mesh_source.h"
 #include "lblight/scene/procedural.h"
 
@@ -30,6 +31,16 @@ fluid::GasSettings gas_settings(const GasSource& s, const Location& where) {
   g.faces = {FaceType::Open, FaceType::Open, FaceType::Open, FaceType::Open, FaceType::Wall, FaceType::Open};
   const std::array<double, 16> m = gas_transform(s);
   const double h = m[0];
+  const Location size_at{where.file, where.json_path + "/size", {}};
+  if (!(h >= kMinNodeSize))
+    throw_invalid("size " + message_number(s.size) + " over " + std::to_string(std::max({g.dims.nx, g.dims.ny, g.dims.nz})) +
+                      " nodes makes them " + message_number(h) + " world units apart; allowed: at least " +
+                      message_number(kMinNodeSize) + " (OpenVDB transforms): a larger size or fewer nodes",
+                  size_at);
+  check_host_memory(static_cast<double>(g.dims.count()) * fluid::kGasBytesPerNode,
+                    "the gas solver's " + std::to_string(g.dims.nx) + "x" + std::to_string(g.dims.ny) + "x" +
+                        std::to_string(g.dims.nz) + " nodes",
+                    "lower the resolution", {where.file, where.json_path + "/resolution", {}});
   fluid::Inlet& in = g.inlet;
   in.enabled = true;
   in.speed = s.inlet_speed;
@@ -47,7 +58,7 @@ fluid::GasSettings gas_settings(const GasSource& s, const Location& where) {
   if (in.x1 < 0)
     throw_invalid("the inlet (centre [" + message_number(s.inlet_center[0]) + ", " + message_number(s.inlet_center[1]) +
                       "], radius " + message_number(s.inlet_radius) + ") covers no node of the floor, whose nodes are " +
-                      message_number(h) + " apart; allowed: a centre inside the floor and a radius of at least half that",
+                      message_number(h) + " apart; allowed: a centre inside the floor and a radius that reaches the nearest node centre",
                   where);
   // Obstacles: each mesh voxelised onto the gas nodes (bounds = the box, in the mesh's own units).
   if (!s.obstacles.empty()) g.solid.assign(g.dims.count(), 0);
@@ -88,17 +99,10 @@ fluid::GasSettings gas_settings(const GasSource& s, const Location& where) {
   return g;
 }
 
-void run_gas(const GasSource& s, int last, const Location& where, const RunContext& ctx,
-             const std::function<void(int, const fluid::GasSolver&)>& on_frame) {
-  fluid::GasSolver solver(gas_settings(s, where));
-  const int frames = last > 0 ? last : s.frames;
-  for (int f = 1; f <= frames; ++f) {
-    for (int t = 0; t < s.steps_per_frame; t += 10) {
-      ctx.check_cancelled();
-      solver.step(std::min(10, s.steps_per_frame - t));
-    }
-    // BGK is a low-Mach model: buoyancy can accelerate the gas past what it holds, which ends in
-    // NaN a few hundred steps later. Stop with the cure instead.
+namespace {
+// BGK is a low-Mach model: buoyancy can accelerate the gas past what it holds, which ends in NaN a
+// few hundred steps later. Checked every 10 steps, so the node named is where it starts.
+void check_gas_speed(const fluid::GasSolver& solver, int f, const Location& where) {
     const auto u = solver.velocity();
     double fastest = 0;
     std::size_t at = 0;
@@ -115,6 +119,19 @@ void run_gas(const GasSource& s, int last, const Location& where, const RunConte
                         ") at node " + node + " by frame " + std::to_string(f) + "; allowed: at most " + message_number(kMaxGasSpeed) +
                         " lattice units per step: lower buoyancy or inlet speed, or raise tau",
                     where);
+}
+}  // namespace
+
+void run_gas(const GasSource& s, int last, const Location& where, const RunContext& ctx,
+             const std::function<void(int, const fluid::GasSolver&)>& on_frame) {
+  fluid::GasSolver solver(gas_settings(s, where));
+  const int frames = last > 0 ? last : s.frames;
+  for (int f = 1; f <= frames; ++f) {
+    for (int t = 0; t < s.steps_per_frame; t += 10) {
+      ctx.check_cancelled();
+      solver.step(std::min(10, s.steps_per_frame - t));
+      check_gas_speed(solver, f, where);
+    }
     on_frame(f, solver);
   }
 }

@@ -122,7 +122,7 @@ std::vector<ObjectSpec> build() {
                {density_type("gas"),
                 custom("resolution", array_of({{"type", "integer"}, {"minimum", 4}, {"maximum", 512}}, 3, 3),
                        "[nx, ny, nz] nodes, each 4..512"),
-                number("size", 1e-6, 1e9, 1.0, "the world length of the longest edge"),
+                number("size", 1e-6, 1e9, 1.0, "1e-6..1e9 world units along the longest edge"),
                 number("tau", 0.503, 5.0, 0.56, "flow relaxation time, 0.503..5 (viscosity (tau - 1/2)/3)"),
                 number("tau_temperature", 0.503, 5.0, 0.52, "0.503..5 (heat diffusivity (tau - 1/2)/4)"),
                 number("tau_smoke", 0.503, 5.0, 0.51, "0.503..5 (smoke diffusivity (tau - 1/2)/4)"),
@@ -136,7 +136,7 @@ std::vector<ObjectSpec> build() {
   t.push_back({"density.gas.obstacle", "A mesh the gas flows around (bounce-back nodes).",
                {required(text("path", nullptr, {}, "an .obj file, relative to the scene file")),
                 custom("position", numbers(3, -1e9, 1e9), "[x, y, z] world: where the mesh's origin goes"),
-                number("scale", 1e-6, 1e6, 1.0, "mesh units to world units"),
+                number("scale", 1e-6, 1e6, 1.0, "1e-6..1e6 world units per mesh unit"),
                 text("part", "all", {"all", "wood"}, "all, wood (the parts classified as wood)"),
                 text("fill", "none", {"none", "parity", "winding"}, "none, parity, winding")}});
   t.push_back({"density.gas.inlet", "A round inlet in the floor, blowing upward.",

@@ -191,7 +191,7 @@ TEST_CASE("gas: walls and obstacles pass no smoke and conserve it, with an inlet
 TEST_CASE("gas: unstable or out-of-model settings are refused before anything runs", "[fluid]") {
   GasSettings s;
   s.tau = 0.5005;
-  CHECK_THROWS_WITH(GasSolver(s), Catch::Contains("tau = 0.5005") && Catch::Contains("allowed: 0.503 < tau"));
+  CHECK_THROWS_WITH(GasSolver(s), Catch::Contains("tau = 0.5005") && Catch::Contains("allowed: 0.503 <= tau"));
   s.tau = 0.6;
   s.inlet.enabled = true;
   s.inlet.x0 = 0, s.inlet.x1 = 2, s.inlet.y0 = 0, s.inlet.y1 = 2;
