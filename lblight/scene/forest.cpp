@@ -28,8 +28,8 @@ std::array<double, 2> range(const JsonReader& r, const std::string& key, std::ar
                             double hi, const std::string& allowed) {
   if (!r.has(key)) return fallback;
   const JsonReader v = r.child(key);
-  if (!v.json().is_array() || v.json().size() != 2) v.fail("expected [low, high], found " + JsonReader::describe(v.json()));
-  const std::array<double, 2> out{v.element(0).as_number(lo, hi, allowed), v.element(1).as_number(lo, hi, allowed)};
+  const std::vector<double> lh = v.as_numbers(2, "[low, high]", lo, hi, allowed);
+  const std::array<double, 2> out{lh[0], lh[1]};
   if (out[1] < out[0]) v.fail("high must be >= low");
   return out;
 }
@@ -84,9 +84,8 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
       check_fields(e, o);
       ForestInstance inst;
       inst.model = model_name(e, "model", models);
-      const JsonReader p = e.child("position");
-      if (!p.json().is_array() || p.json().size() != 3) p.fail("expected [x, y, z], found " + JsonReader::describe(p.json()));
-      for (int k = 0; k < 3; ++k) inst.position[k] = p.element(k).as_number(-1e9, 1e9, "-1e9..1e9 world units");
+      const std::vector<double> p = e.child("position").as_numbers(3, "[x, y, z]", -1e9, 1e9, "-1e9..1e9 world units");
+      std::copy(p.begin(), p.end(), inst.position.begin());
       inst.yaw_degrees = number_field(e, o, "yaw_degrees");
       check_yaw(e, "yaw_degrees", inst.yaw_degrees, rotation);
       inst.scale = number_field(e, o, "scale");
@@ -102,9 +101,8 @@ ForestSpec read_forest(const JsonReader& r, const std::set<std::string>& models,
     ForestGenerator gen;
     gen.json_path = g.path();
     const JsonReader a = g.child("area");
-    if (!a.json().is_array() || a.json().size() != 4)
-      a.fail("expected [x_min, y_min, x_max, y_max], found " + JsonReader::describe(a.json()));
-    for (int k = 0; k < 4; ++k) gen.area[k] = a.element(k).as_number(-1e9, 1e9, "-1e9..1e9 world units");
+    const std::vector<double> corners = a.as_numbers(4, "[x_min, y_min, x_max, y_max]", -1e9, 1e9, "-1e9..1e9 world units");
+    std::copy(corners.begin(), corners.end(), gen.area.begin());
     if (!(gen.area[2] > gen.area[0] && gen.area[3] > gen.area[1])) a.fail("x_max must be > x_min and y_max > y_min");
     gen.height = number_field(g, o, "height");
     const double area = (gen.area[2] - gen.area[0]) * (gen.area[3] - gen.area[1]);

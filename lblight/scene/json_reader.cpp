@@ -142,6 +142,14 @@ double JsonReader::as_number(double lo, double hi, const std::string& allowed) c
   return v;
 }
 
+std::vector<double> JsonReader::as_numbers(std::size_t count, const std::string& shape, double lo, double hi,
+                                           const std::string& allowed) const {
+  if (!j_->is_array() || j_->size() != count) fail("expected " + shape + ", found " + describe(*j_));
+  std::vector<double> out(count);
+  for (std::size_t k = 0; k < count; ++k) out[k] = element(k).as_number(lo, hi, allowed);
+  return out;
+}
+
 double JsonReader::number(const std::string& key, double lo, double hi, const std::string& allowed) const {
   return child(key).as_number(lo, hi, allowed);
 }

@@ -4,6 +4,7 @@
 
 #include <initializer_list>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -38,6 +39,10 @@ class JsonReader {
 
   // This node itself as a finite number within [lo, hi].
   double as_number(double lo, double hi, const std::string& allowed) const;
+  // This node as a list of exactly `count` such numbers; `shape` names them in the message
+  // ("[x, y, z]").
+  std::vector<double> as_numbers(std::size_t count, const std::string& shape, double lo, double hi,
+                                 const std::string& allowed) const;
 
   [[noreturn]] void fail(const std::string& message, const std::string& key = {}) const;
 

@@ -1,4 +1,5 @@
 // Scene file v1 parser. Every rejection names file, JSON pointer, value and what is allowed.
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <fstream>
@@ -267,9 +268,8 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
         const std::filesystem::path p = string_field(e, ob, "path");
         o.path = p.is_absolute() ? p : dir / p;
         if (e.has("position")) {
-          const JsonReader v = e.child("position");
-          if (!v.json().is_array() || v.json().size() != 3) v.fail("expected [x, y, z], found " + JsonReader::describe(v.json()));
-          for (std::size_t a = 0; a < 3; ++a) o.position[a] = v.element(a).as_number(-1e9, 1e9, "a finite coordinate");
+          const std::vector<double> v = e.child("position").as_numbers(3, "[x, y, z]", -1e9, 1e9, "a finite coordinate");
+          std::copy(v.begin(), v.end(), o.position.begin());
         }
         o.scale = number_field(e, ob, "scale");
         o.part = string_field(e, ob, "part");
@@ -285,9 +285,8 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
       const ObjectSpec& io = scene_object("density.gas.inlet");
       check_fields(in, io);
       if (in.has("center")) {
-        const JsonReader c = in.child("center");
-        if (!c.json().is_array() || c.json().size() != 2) c.fail("expected [x, y], found " + JsonReader::describe(c.json()));
-        for (std::size_t k = 0; k < 2; ++k) g.inlet_center[k] = c.element(k).as_number(-1e9, 1e9, "a finite coordinate");
+        const std::vector<double> c = in.child("center").as_numbers(2, "[x, y]", -1e9, 1e9, "a finite coordinate");
+        std::copy(c.begin(), c.end(), g.inlet_center.begin());
       }
       g.inlet_radius = number_field(in, io, "radius");
       g.inlet_speed = number_field(in, io, "speed");
@@ -318,10 +317,8 @@ ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
 }
 
 Vec3d read_vec3(const JsonReader& r) {
-  if (!r.json().is_array() || r.json().size() != 3) r.fail("expected [x, y, z], found " + JsonReader::describe(r.json()));
-  Vec3d v{r.element(0).as_number(-1e30, 1e30, "a finite number"), r.element(1).as_number(-1e30, 1e30, "a finite number"),
-          r.element(2).as_number(-1e30, 1e30, "a finite number")};
-  return v;
+  const std::vector<double> v = r.as_numbers(3, "[x, y, z]", -1e30, 1e30, "a finite number");
+  return {v[0], v[1], v[2]};
 }
 
 // {"direction": [x, y, z]} or {"elevation": deg, "azimuth": deg}: a unit vector toward the sun.
