@@ -73,14 +73,18 @@ LBL_HOSTDEV inline Moments collide(Real (&f)[d3q19::kQ], double tau, double fx, 
 inline constexpr int kQ7 = 7;
 LBL_HOSTDEV constexpr double weight7(int k) { return k == 0 ? 0.25 : 0.125; }
 
+LBL_HOSTDEV inline double scalar_equilibrium(int k, double s, double ux, double uy, double uz) {
+  const double eu = d3q19::cx(k) * ux + d3q19::cy(k) * uy + d3q19::cz(k) * uz;
+  return weight7(k) * s * (1.0 + 4.0 * eu);
+}
+
 template <typename Real>
 LBL_HOSTDEV inline void collide_scalar(Real (&g)[kQ7], double tau, double ux, double uy, double uz) {
   double s = 0;
   for (int k = 0; k < kQ7; ++k) s += static_cast<double>(g[k]);
   const double omega = 1.0 / tau;
   for (int k = 0; k < kQ7; ++k) {
-    const double eu = d3q19::cx(k) * ux + d3q19::cy(k) * uy + d3q19::cz(k) * uz;
-    const double geq = weight7(k) * s * (1.0 + 4.0 * eu);
+    const double geq = scalar_equilibrium(k, s, ux, uy, uz);
     g[k] = static_cast<Real>(static_cast<double>(g[k]) - omega * (static_cast<double>(g[k]) - geq));
   }
 }

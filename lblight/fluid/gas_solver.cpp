@@ -61,6 +61,7 @@ GasSolver::GasSolver(const GasSettings& settings) : s_(settings) {
   const std::string why = check_gas_settings(s_);
   if (!why.empty()) throw_invalid(why);
   n_ = s_.dims.count();
+  threads_ = s_.threads > 0 ? s_.threads : std::max(1, omp_get_max_threads());
   if (s_.solid.empty()) s_.solid.assign(n_, 0);
   any_solid_ = std::any_of(s_.solid.begin(), s_.solid.end(), [](std::uint8_t v) { return v != 0; });
   for (int m = 0; m < kQ; ++m)
@@ -96,10 +97,7 @@ void GasSolver::set_state(const std::vector<double>& rho, const std::array<std::
       for (int m = 0; m < kQ; ++m) f_[m * n_ + i] = static_cast<float>(equilibrium<double>(m, r, ux_[i], uy_[i], uz_[i]));
     auto set_scalar = [&](std::vector<float>& g, const std::vector<double>& v) {
       if (v.empty()) return;
-      for (int k = 0; k < kQ7; ++k) {
-        const double eu = cx(k) * ux_[i] + cy(k) * uy_[i] + cz(k) * uz_[i];
-        g[k * n_ + i] = static_cast<float>(weight7(k) * v[i] * (1.0 + 4.0 * eu));
-      }
+      for (int k = 0; k < kQ7; ++k) g[k * n_ + i] = static_cast<float>(scalar_equilibrium(k, v[i], ux_[i], uy_[i], uz_[i]));
     };
     set_scalar(t_, temperature);
     set_scalar(c_, smoke);
@@ -114,8 +112,7 @@ double GasSolver::scalar(const std::vector<float>& g, std::size_t i) const {
 
 void GasSolver::collide_all() {
   const Dims& d = s_.dims;
-  const int threads = s_.threads > 0 ? s_.threads : std::max(1, omp_get_max_threads());
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads_)
   for (int z = 0; z < d.nz; ++z)
     for (int y = 0; y < d.ny; ++y)
       for (int x = 0; x < d.nx; ++x) {
@@ -151,9 +148,8 @@ template <int Q>
 void GasSolver::stream(const std::vector<float>& post, std::vector<float>& next, int kind) const {
   const Dims& d = s_.dims;
   const int n[3] = {d.nx, d.ny, d.nz};
-  const int threads = s_.threads > 0 ? s_.threads : std::max(1, omp_get_max_threads());
   const Inlet& in = s_.inlet;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads_)
   for (int z = 0; z < d.nz; ++z)
     for (int y = 0; y < d.ny; ++y)
       for (int x = 0; x < d.nx; ++x) {
@@ -178,7 +174,7 @@ void GasSolver::stream(const std::vector<float>& post, std::vector<float>& next,
               (in.mask.empty() || in.mask[static_cast<std::size_t>(y) * d.nx + x])) {
             const double w = in.speed;
             if (kind == kFlow) v = static_cast<float>(equilibrium<double>(m, 1.0, 0.0, 0.0, w));
-            else v = static_cast<float>(weight7(m) * (kind == kTemperature ? in.temperature : in.smoke) * (1.0 + 4.0 * cz(m) * w));
+            else v = static_cast<float>(scalar_equilibrium(m, kind == kTemperature ? in.temperature : in.smoke, 0.0, 0.0, w));
           } else if (leaving >= 0) {
             const FaceType t = s_.faces[static_cast<std::size_t>(leaving)];
             if (t == FaceType::Open) {
@@ -186,10 +182,7 @@ void GasSolver::stream(const std::vector<float>& post, std::vector<float>& next,
               // and the node's own velocity (scalar: its own value). With the node's own density
               // instead, air drawn in through a side face ran away (measured: Mach 1.3 by step 600).
               if (kind == kFlow) v = static_cast<float>(equilibrium<double>(m, 1.0, ux_[i], uy_[i], uz_[i]));
-              else {
-                const double sv = kind == kTemperature ? temp_[i] : smoke_[i];
-                v = static_cast<float>(weight7(m) * sv * (1.0 + 4.0 * (cx(m) * ux_[i] + cy(m) * uy_[i] + cz(m) * uz_[i])));
-              }
+              else v = static_cast<float>(scalar_equilibrium(m, kind == kTemperature ? temp_[i] : smoke_[i], ux_[i], uy_[i], uz_[i]));
             } else {
               v = post[static_cast<std::size_t>(d3q19::opposite(m)) * n_ + i];
             }

@@ -89,6 +89,7 @@ class GasSolver {
   std::vector<double> rho_, ux_, uy_, uz_, temp_, smoke_;  // per node, as of the last collision
   long long steps_ = 0;
   bool any_solid_ = false;
+  int threads_ = 1;
   std::array<std::ptrdiff_t, 19> offset_{};  // node index of x + e_m minus that of x
 };
 
