@@ -63,8 +63,7 @@ std::vector<std::uint8_t> tone_map(const Image& img, double exposure) {
       if (img.rgba[4 * i + 3] > 1e-3f) lum.push_back((img.rgba[4 * i] + img.rgba[4 * i + 1] + img.rgba[4 * i + 2]) / 3.0f);
     exposure = 1.0;
     if (!lum.empty()) {
-      std::nth_element(lum.begin(), lum.begin() + static_cast<std::ptrdiff_t>(lum.size() * 995 / 1000), lum.end());
-      const float p = lum[lum.size() * 995 / 1000];
+      const float p = upper_percentile(lum);
       if (p > 0) exposure = 0.9 / p;
     }
   }
@@ -81,7 +80,8 @@ std::vector<std::uint8_t> tone_map(const Image& img, double exposure) {
 
 // The contact sheet: every base solution of a bake rendered as light of its own (its total,
 // emitted by the medium's scattering, each tile exposed on its own), labelled, in one SVG.
-int run_sheet(const RenderArgs& a, const RenderSource& src_in, int width, int height, const RunContext& ctx) {
+int run_sheet(const RenderArgs& a, const RenderSource& src_in, int width, int height, const fs::path& out,
+              const RunContext& ctx) {
   RenderSource src = src_in;
   src.light = false;
   RenderVolume volume = load_render_volume(src, {}, ctx);
@@ -131,7 +131,6 @@ int run_sheet(const RenderArgs& a, const RenderSource& src_in, int width, int he
         << d3q19::cx(j) << "," << d3q19::cy(j) << "," << d3q19::cz(j) << ")" << (j == 0 ? " ambient" : "") << "</text>\n";
   }
   svg << "</svg>\n";
-  const fs::path out = a.output == "render.exr" ? fs::path("sheet.svg") : fs::path(a.output);
   write_file_atomically(out, svg.str());
   std::cout << "contact sheet of " << solutions.size() << " base solution(s), tiles " << width << "x" << height
             << " (each exposed on its own): " << out.string() << "\n";
@@ -172,21 +171,21 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
     throw_invalid("--range " + message_number(a.range[0]) + "," + message_number(a.range[1]) +
                   ": expected two finite numbers LOW,HIGH");
   // Both outputs checked before the render: a refusal after it would leave the first file behind.
-  const fs::path exr_out = a.sheet && a.output == "render.exr" ? fs::path("sheet.svg") : fs::path(a.output);
-  const fs::path png_out = a.png.empty() ? fs::path(exr_out).replace_extension(".png") : fs::path(a.png);
-  for (const fs::path& p : a.sheet ? std::vector<fs::path>{exr_out} : std::vector<fs::path>{exr_out, png_out}) {
+  const fs::path exr = a.sheet && a.output == "render.exr" ? fs::path("sheet.svg") : fs::path(a.output);
+  const fs::path png = a.png.empty() ? fs::path(exr).replace_extension(".png") : fs::path(a.png);
+  for (const fs::path& p : a.sheet ? std::vector<fs::path>{exr} : std::vector<fs::path>{exr, png}) {
     const fs::path folder = p.has_parent_path() ? p.parent_path() : fs::path(".");
     std::error_code ec;
     if (!fs::is_directory(folder, ec)) throw_invalid("the folder to write into does not exist", {p.string(), {}, {}});
     if (fs::is_directory(p, ec)) throw_invalid("is a folder; name a file to write", {p.string(), {}, {}});
   }
-  if (!a.sheet && fs::path(exr_out).lexically_normal() == fs::path(png_out).lexically_normal())
+  if (!a.sheet && exr.lexically_normal() == png.lexically_normal())
     throw_invalid("the EXR and the PNG preview would be the same file; name the EXR with -o x.exr (the preview "
                   "becomes x.png) or give --png another name",
-                  {exr_out.string(), {}, {}});
+                  {exr.string(), {}, {}});
   RunContext ctx;
   ctx.cancel = &g_interrupted;
-  if (a.sheet) return run_sheet(a, src, width, height, ctx);
+  if (a.sheet) return run_sheet(a, src, width, height, exr, ctx);
   const RenderVolume volume = load_render_volume(src, sun, ctx);
   Camera cam;
   if (!a.camera.empty()) {
@@ -242,9 +241,7 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
       {"lblight_units", a.grid.empty() ? "radiance; 1 = a unit sun's irradiance per steradian"
                                        : "false colour (viridis) of grid '" + a.grid + "' from " + message_number(field.lo) +
                                              " to " + message_number(field.hi) + (a.log ? " (log)" : "")}};
-  const fs::path exr = a.output;
   write_file_atomically(exr, [&](const fs::path& tmp) { write_exr(tmp, width, height, img.rgba, !a.full_float, attrs); });
-  fs::path png = a.png.empty() ? fs::path(exr).replace_extension(".png") : fs::path(a.png);
   if (a.grid.empty()) {
     write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, width, height, tone_map(img, a.exposure)); });
   } else {

@@ -271,6 +271,12 @@ double FieldSettings::position(double value) const {
   return (value - lo) / (hi - lo);
 }
 
+float upper_percentile(std::vector<float>& values) {
+  const std::size_t top = values.size() * 995 / 1000;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(top), values.end());
+  return values[top];
+}
+
 void choose_field_scale(const RenderVolume& v, FieldSettings& st) {
   std::vector<float> values;
   for (std::size_t i = 0; i < v.field.size(); ++i)
@@ -284,9 +290,7 @@ void choose_field_scale(const RenderVolume& v, FieldSettings& st) {
     st.hi = 1.0;
     return;
   }
-  const std::size_t top = values.size() * 995 / 1000;
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(top), values.end());
-  const double hi = values[top];
+  const double hi = upper_percentile(values);
   const double lo = *std::min_element(values.begin(), values.end());
   if (st.log) {
     st.hi = hi;

@@ -88,6 +88,10 @@ struct FieldSettings {
 Image render_field(const RenderVolume& volume, const std::vector<float>& field, const Camera& camera,
                    const FieldSettings& settings, const RunContext& ctx = {});
 
+// The 99.5th percentile of non-empty `values` (reordered): where automatic exposures and colour
+// scales put their top, so a few hot nodes or pixels do not wash a picture out.
+float upper_percentile(std::vector<float>& values);
+
 // A scale for volume.field over its occupied nodes: low = 0 (the minimum when negative values
 // exist; for a log scale the smallest positive value, at most 4 decades under high), high = the
 // 99.5th percentile (so a few hot nodes do not wash the picture out). With no occupied node,
