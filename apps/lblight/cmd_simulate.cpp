@@ -64,19 +64,20 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
       std::array<std::vector<float>, 3> v;
       for (int c = 0; c < 3; ++c) v[c].assign(vel[c].begin(), vel[c].end());
       const double h = density.index_to_world[0];
-      // Velocity in world units per second-free "per step" (lattice units x node size).
+      // Velocity in world units per lattice step (lattice units x node size).
       for (auto& c : v)
         for (float& x : c) x = static_cast<float>(x * h);
       nlohmann::json meta = {{"lblight_version", kVersion}, {"lblight_frame", f}, {"lblight_steps", f * src.steps_per_frame},
                              {"lblight_model", m->name}};
-      std::vector<float> obstacle;
-      for (std::uint8_t b : solver.settings().solid) obstacle.push_back(b ? 1.0f : 0.0f);
       std::vector<DenseGridOut> grids = {
           {"density", &density.density, nullptr, true, {{"lblight_meaning", "smoke concentration / inlet smoke, clamped to [0, 1]"}}},
           {"temperature", &t, nullptr, false, {{"lblight_units", "degrees"}}},
           {"velocity", nullptr, &v, false, {{"lblight_units", "world units per lattice step"}}}};
-      if (!src.obstacles.empty())
+      std::vector<float> obstacle;
+      if (!src.obstacles.empty()) {
+        for (std::uint8_t b : solver.settings().solid) obstacle.push_back(b ? 1.0f : 0.0f);
         grids.push_back({"obstacle", &obstacle, nullptr, false, {{"lblight_meaning", "1 on solid (bounce-back) nodes"}}});
+      }
       const std::string name = frame_file(m->name, f);
       write_vdb(out.path(name), density.frame(), grids, meta);
       double smoke = 0;

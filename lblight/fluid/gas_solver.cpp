@@ -229,6 +229,17 @@ std::vector<double> GasSolver::smoke() const {
   return out;
 }
 
+std::pair<double, std::size_t> GasSolver::fastest_node() const {
+  double fastest = 0;
+  std::size_t at = 0;
+  for (std::size_t i = 0; i < n_; ++i) {
+    double v = std::sqrt(ux_[i] * ux_[i] + uy_[i] * uy_[i] + uz_[i] * uz_[i]);
+    if (!std::isfinite(v)) v = 1e300;
+    if (v > fastest) fastest = v, at = i;
+  }
+  return {fastest, at};
+}
+
 double GasSolver::total_mass() const {
   double m = 0;
   for (double r : density()) m += r;

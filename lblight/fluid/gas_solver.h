@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lblight/lattice/lattice.h"
@@ -72,6 +73,8 @@ class GasSolver {
   std::array<std::vector<double>, 3> velocity() const;
   std::vector<double> temperature() const;
   std::vector<double> smoke() const;
+  // The fastest node of the last step: its speed |u| (1e300 for a non-finite one) and index.
+  std::pair<double, std::size_t> fastest_node() const;
   double total_mass() const;
   std::array<double, 3> total_momentum() const;  // sum of f e over fluid nodes (no force half-step)
 
