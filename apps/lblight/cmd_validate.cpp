@@ -98,9 +98,12 @@ int run_validate(const ValidateArgs& args) {
          << mp.stats.occupied << " occupied nodes, " << mp.stats.wood << " wood\n";
     text << "  material '" << mp.spec->material.name << "'" << (mp.spec->material.absorbs ? " (absorbs f0)" : "")
          << ": " << channel_line(mp.spec->material) << "\n";
-    if (mp.lattice.material_count > 1)
+    if (mp.lattice.has_material(kMaterialWood))
       text << "  wood '" << mp.spec->wood_material.name << "'" << (mp.spec->wood_material.absorbs ? " (absorbs f0)" : "")
            << ": " << channel_line(mp.spec->wood_material) << "\n";
+    if (mp.ground.on)
+      text << "  ground: albedo " << mp.ground.albedo[0] << ", " << mp.ground.albedo[1] << ", " << mp.ground.albedo[2]
+           << ", the lattice's lowest interior layer" << (mp.ground.gap > 0 ? ", " + std::to_string(mp.ground.gap) + " empty layer(s) below the medium" : " (directly below the medium)") << "\n";
     text << "  solutions (" << mp.solutions.size() << "): " << sols << "; " << mp.channels.size()
          << " distinct channel(s) each\n";
     text << savings_lines(mp);
@@ -128,7 +131,8 @@ int run_validate(const ValidateArgs& args) {
     m["occupied_nodes"] = mp.stats.occupied;
     m["wood_nodes"] = mp.stats.wood;
     m["materials"] = {{"medium", material_json(mp.spec->material)}};
-    if (mp.lattice.material_count > 1) m["materials"]["wood"] = material_json(mp.spec->wood_material);
+    if (mp.lattice.has_material(kMaterialWood)) m["materials"]["wood"] = material_json(mp.spec->wood_material);
+    if (mp.ground.on) m["ground"] = {{"albedo", mp.ground.albedo}, {"empty_layers_above", mp.ground.gap}};
     m["solutions"] = nlohmann::json::array();
     for (const SolutionPlan& s : mp.solutions) m["solutions"].push_back(s.grid_name);
     m["distinct_channels"] = mp.channels.size();

@@ -82,14 +82,17 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
     // The operator picked with literal indices: its ~180 coefficients are then read at fixed
     // addresses (on the GPU, constant-bank operands of the FMAs) instead of through a per-thread
     // address, which costs a separate load each and serializes in a warp straddling two materials.
-    static_assert(kMaxChannels == 3 && kMaxMaterials == 2, "one case per channel and material");
+    static_assert(kMaxChannels == 3 && kMaxMaterials == 3, "one case per channel and material");
     switch (c * kMaxMaterials + static_cast<int>(k)) {
       case 0: collide_node(tb.op(0, 0), keep, rho, f, push); break;
       case 1: collide_node(tb.op(0, 1), keep, rho, f, push); break;
-      case 2: collide_node(tb.op(1, 0), keep, rho, f, push); break;
-      case 3: collide_node(tb.op(1, 1), keep, rho, f, push); break;
-      case 4: collide_node(tb.op(2, 0), keep, rho, f, push); break;
-      default: collide_node(tb.op(2, 1), keep, rho, f, push); break;
+      case 2: collide_node(tb.op(0, 2), keep, rho, f, push); break;
+      case 3: collide_node(tb.op(1, 0), keep, rho, f, push); break;
+      case 4: collide_node(tb.op(1, 1), keep, rho, f, push); break;
+      case 5: collide_node(tb.op(1, 2), keep, rho, f, push); break;
+      case 6: collide_node(tb.op(2, 0), keep, rho, f, push); break;
+      case 7: collide_node(tb.op(2, 1), keep, rho, f, push); break;
+      default: collide_node(tb.op(2, 2), keep, rho, f, push); break;
     }
   }
 }

@@ -39,7 +39,25 @@ void check_geometry(const LatticeGeometry& g, const char* backend) {
         const float rho = g.density[i];
         if (!std::isfinite(rho) || rho < 0.0f) fail("has density " + std::to_string(rho) + at());
         if (rho != 0.0f && d.is_boundary(x, y, z)) fail("has density " + std::to_string(rho) + " on the boundary" + at());
+        if (g.material[i] == kMaterialGround && !d.is_boundary(x, y, z) &&
+            g.material[d.index(1, y, z)] != kMaterialGround)
+          fail("has a ground node in a row that is not all ground" + at());
+        if (g.material[i] != kMaterialGround && !d.is_boundary(x, y, z) && g.material[d.index(1, y, z)] == kMaterialGround)
+          fail("has a node of material " + std::to_string(g.material[i]) + " in a row of ground" + at());
       }
+}
+
+bool LatticeGeometry::has_material(std::uint8_t k) const {
+  for (std::size_t i = 0; i < material.size(); ++i)
+    if (material[i] == k && density[i] > 0.0f) return true;
+  return false;
+}
+
+std::vector<float> LatticeGeometry::medium_density() const {
+  std::vector<float> d = density;
+  for (std::size_t i = 0; i < d.size(); ++i)
+    if (material[i] == kMaterialGround) d[i] = 0.0f;
+  return d;
 }
 
 }  // namespace lblight

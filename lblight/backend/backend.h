@@ -18,17 +18,24 @@ namespace lblight {
 
 // What stays fixed while a lattice is solved: its shape, medium density and material per node.
 // The boundary layer (docs/model.md sec. 4) must have density 0.
+// A lattice standing on the ground has a layer of ground nodes (kMaterialGround, density 1,
+// lattice/ground.h) whole interior rows wide; they are part of the solve, never of the medium.
 struct LatticeGeometry {
   Dims dims;
   std::vector<float> density;          // dims.count() values in [0, 1]
   std::vector<std::uint8_t> material;  // dims.count() values < material_count
   int material_count = 1;
+
+  bool has_material(std::uint8_t k) const;  // some node of density > 0 has material k
+  // The density with ground nodes at 0: what outputs, masks and statistics of the medium use.
+  std::vector<float> medium_density() const;
 };
 
 // Checks g against the contract above. Fewer than 3 nodes per edge is an input error
 // (Error, InvalidInput); otherwise it throws std::logic_error naming `backend` unless there is
 // one density and material per node, material_count in [1, kMaxMaterials], every
-// material below it, finite non-negative densities and an empty boundary layer. Backends call it
+// material below it, finite non-negative densities, an empty boundary layer and ground nodes only
+// in rows of ground (the CPU runs a row of one material with that material's collision). Backends call it
 // before taking the arrays: a GPU kernel picks the collision operator by the material byte, so a
 // stray value would silently use another material's (or an unset) operator.
 void check_geometry(const LatticeGeometry& g, const char* backend);

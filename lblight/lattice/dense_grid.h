@@ -16,7 +16,10 @@ namespace lblight {
 // Material index per node. A lattice holds at most kMaxMaterials of them.
 inline constexpr std::uint8_t kMaterialMedium = 0;  // cloud medium, plastic, or leaf ("green")
 inline constexpr std::uint8_t kMaterialWood = 1;    // wood ("brown")
-inline constexpr int kMaxMaterials = 2;
+// The reflective ground layer a lattice may stand on (lattice/ground.h): in lattices only, never in
+// a density grid or an output.
+inline constexpr std::uint8_t kMaterialGround = 2;
+inline constexpr int kMaxMaterials = 3;
 
 // Smallest node edge (world units) an output can have: OpenVDB refuses transforms whose scale
 // is below ~1e-5 ("nearly singular"), which would fail only when the .vdb is written.

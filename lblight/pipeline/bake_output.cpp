@@ -90,6 +90,22 @@ BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target
 BakeOutput::~BakeOutput() = default;
 
 namespace {
+// Lattice layer 1 (the ground) takes the values of layer 2.
+void copy_up_to_ground(const Dims& d, std::vector<float>& v) {
+  for (int y = 0; y < d.ny; ++y)
+    for (int x = 0; x < d.nx; ++x) v[d.index(x, y, 1)] = v[d.index(x, y, 2)];
+}
+
+std::string light_units(const ModelPlan& mp, int solution) {
+  std::string u = "1 = the open-air light of a unit sun";
+  if (mp.ground.on)
+    u += "'s beam; the ground (albedo " + message_number(mp.ground.albedo[0]) + ", " + message_number(mp.ground.albedo[1]) +
+         ", " + message_number(mp.ground.albedo[2]) +
+         ") adds albedo x the light sent down (a sun above the horizon: 1 + albedo in open air)";
+  if (solution == 0) return u + "; this ambient solution is 18 in open air" + (mp.ground.on ? " (+ 5 x albedo)" : "");
+  return u + (solution > 0 ? " (this solution in empty space)" : "");
+}
+
 nlohmann::json lattice_box_json(const ModelPlan& mp) {
   const Dims& d = mp.lattice.dims;
   return {{"lblight_lattice_min", mp.lattice_index_min}, {"lblight_lattice_dims", {d.nx, d.ny, d.nz}}};
@@ -113,9 +129,10 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   // renderer interpolates between), never the boundary layer's source values; the coarse forest
   // lattices keep their whole box, whose boundary is the open-air light relighting needs there.
   keep_.clear();
-  if (mp.role == PlanRole::Model && !plan_.scene->output.full_box) keep_ = near_medium(mp.lattice.dims, mp.lattice.density, 1);
+  medium_density_ = mp.lattice.medium_density();
+  if (mp.role == PlanRole::Model && !plan_.scene->output.full_box) keep_ = near_medium(mp.lattice.dims, medium_density_, 1);
   if (!plan_.scene->output.vdb) return;
-  const bool has_wood = mp.lattice.material_count > 1;
+  const bool has_wood = mp.lattice.has_material(kMaterialWood);
   const nlohmann::json file_meta = {{"creator", std::string("lblight ") + kVersion},
                                     {"lblight_model", mp.spec->name},
                                     {"lblight_scene_hash", plan_.scene->hash}};
@@ -129,7 +146,7 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   worker_.post([this, &mp, has_wood] {
     const auto t0 = std::chrono::steady_clock::now();
     const nlohmann::json box = lattice_box_json(mp);
-    vdb_->add({"density", &mp.lattice.density, nullptr, true, box});
+    vdb_->add({"density", &medium_density_, nullptr, true, box});
     if (has_wood) {
       std::vector<float> brown(mp.lattice.dims.count());
       for (std::size_t i = 0; i < brown.size(); ++i)
@@ -164,13 +181,18 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   g.metadata["lblight_iterations"] = r.iterations;
   g.metadata["lblight_error_estimate"] = r.error_estimate;
   g.metadata["lblight_converged"] = r.converged;
-  g.metadata["lblight_units"] = r.plan.index == 0 ? "1 = the open-air light of a unit sun; this ambient solution is 18 in open air"
-                                                  : "1 = the open-air light of a unit sun (this solution in empty space)";
+  g.metadata["lblight_units"] = light_units(mp, r.plan.index);
   g.metadata["lblight_active"] = keep_.empty() ? "the whole lattice box, boundary source values included"
                                                : "occupied nodes and their 26 neighbours (0 elsewhere)";
   LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
   worker_.post([this, &mp, totals, std_error, g = std::move(g), lbh_in, slot]() mutable {
     const auto t0 = std::chrono::steady_clock::now();
+    // The ground layer's own totals mix what arrives from above with the boundary below it; a
+    // renderer interpolating down to the ground should see the light just above it instead.
+    if (mp.ground.on)
+      for (auto* grid : {totals.get(), std_error.get()})
+        if (grid)
+          for (auto& c : *grid) copy_up_to_ground(mp.lattice.dims, c);
     if (!keep_.empty())
       for (auto* grid : {totals.get(), std_error.get()})
         if (grid)
@@ -235,7 +257,11 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["source"] = mp.grid.description;
   model["lattice"] = lattice_json(mp);
   model["materials"] = {{"medium", material_json(mp.spec->material)}};
-  if (mp.lattice.material_count > 1) model["materials"]["wood"] = material_json(mp.spec->wood_material);
+  if (mp.lattice.has_material(kMaterialWood)) model["materials"]["wood"] = material_json(mp.spec->wood_material);
+  if (mp.ground.on)
+    model["ground"] = {{"albedo", mp.ground.albedo},
+                       {"layer_index_z", mp.lattice_index_min[2] + 1},
+                       {"empty_layers_above", mp.ground.gap}};
   model["occupied_nodes"] = mp.stats.occupied;
   model["wood_nodes"] = mp.stats.wood;
   model["distinct_channels"] = mp.channels.size();
@@ -339,6 +365,11 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   m["units"] = "light: 1 = the open-air light of a unit sun (a directional base solution in empty space); B00 is 18 "
                "in open air";
   if (plan_.forest) m["forest"] = forest_json(*plan_.forest);
+  if (plan_.scene->ground.enabled)
+    m["ground"] = {{"height", plan_.scene->ground.height},
+                   {"albedo", plan_.scene->ground.albedo},
+                   {"units", "a ground of albedo A sends back A x the light sent down: a sun above the horizon is "
+                             "1 + A in open air, sky S is 9 S + 5 A S (docs/model.md sec. 4.3)"}};
   m["total_seconds"] = total_seconds;
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");
   dir_.commit();

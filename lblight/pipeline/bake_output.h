@@ -59,6 +59,7 @@ class BakeOutput {
   std::vector<SolutionResult> done_;   // manifest rows (totals handed to the worker)
   std::vector<LbhEncoded> encoded_;    // slot i: done_[i], filled by the worker
   std::vector<std::uint8_t> keep_;     // nodes whose light is written (empty: all of them)
+  std::vector<float> medium_density_;  // the lattice's density without its ground layer
   std::vector<double> half_error_;     // slot i: done_[i]'s half rounding error, filled by the worker
   std::unique_ptr<VdbStreamWriter> vdb_;
   double output_seconds_ = 0;          // worker time spent on this model's output

@@ -98,6 +98,7 @@ struct ForestManifest {
   bool coarse = false;
   std::map<std::string, std::string> model_file, alone_file;  // model -> .vdb
   std::string forest_file;
+  std::string ground_units;  // the manifest's ground note ("": no ground)
 };
 
 ForestManifest read_forest_manifest(const fs::path& dir) {
@@ -108,6 +109,8 @@ ForestManifest read_forest_manifest(const fs::path& dir) {
     fail("/forest", "this bake holds no forest (no \"forest\" section); relight one model with --model, or bake a scene "
                     "with a forest");
   ForestManifest f;
+  if (m.contains("ground") && m["ground"].is_object() && m["ground"].contains("units") && m["ground"]["units"].is_string())
+    f.ground_units = m["ground"]["units"].get<std::string>();
   for (std::size_t i = 0; i < m["models"].size(); ++i) {
     const nlohmann::json& e = m["models"][i];
     const std::string at = "/models/" + std::to_string(i);
@@ -400,7 +403,8 @@ ForestRelightResult relight_forest(const fs::path& dir, const ForestRelightReque
   volume.light_metadata = {
       {"lblight_meaning", "light of a static bake of this sun, per instance from its model's base solutions" +
                               std::string(req.coarse ? " x the coarse forest factor" : "") +
-                              "; 1 = the open-air value of a unit sun (ambient a: 18 a in open air, sky S: 9 S)"},
+                              "; 1 = the open-air value of a unit sun (ambient a: 18 a in open air, sky S: 9 S)" +
+                              (fm.ground_units.empty() ? std::string() : "; " + fm.ground_units)},
       {"lblight_units", "open-air light of a unit sun"}};
   volume.density_metadata = {{"lblight_meaning", "the forest's density: the instances' fine densities resampled, summed, at most 1"}};
   write_file_atomically(output, [&](const fs::path& tmp) {

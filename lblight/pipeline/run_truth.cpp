@@ -2,6 +2,7 @@
 
 #include <chrono>
 
+#include "lblight/core/error.h"
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/reference/truth.h"
 
@@ -19,6 +20,16 @@ nlohmann::json reference_json(const MonteCarloOptions& o) {
 }
 
 namespace {
+
+// The diffusion solutions (and the report's comparisons built on them) have no ground yet.
+void refuse_ground(const BakePlan& plan, const std::string& what) {
+  for (const ModelPlan& mp : plan.models)
+    if (mp.ground.on)
+      throw_invalid(what + " does not model the ground yet (model '" + mp.spec->name +
+                        "' stands on it); use the Monte Carlo reference (truth --method montecarlo), or leave "
+                        "\"ground\" out",
+                    {plan.scene->file.string(), "/ground", {}});
+}
 
 // Solves every solution of the plan with `solve` and writes them as a bake would.
 template <typename Solve>
@@ -68,6 +79,7 @@ nlohmann::json run_diffusion(const BakePlan& plan, const DiffusionRunOptions& op
                              BakeObserver& observer, const RunContext& ctx, double seconds_before) {
   const auto t0 = std::chrono::steady_clock::now();
   const bool fld = options.limiter == FluxLimiter::LevermorePomraning;
+  refuse_ground(plan, fld ? "truth --method fld" : "truth --method cda");
   const std::string solver = options.solver == DiffusionSolver::Multigrid ? "Picard iterations, multigrid CG"
                                                                            : "Algorithm 1 (red-black Gauss-Seidel)";
   BakeOutput output(plan, target,

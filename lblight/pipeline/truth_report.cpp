@@ -61,6 +61,10 @@ TruthReport make_truth_report(const Scene& scene, const PlanOverrides& ov, const
   paper_scene.solver.model = LbModel{};
   calibrated_scene.solver.model = LbModel{};
   calibrated_scene.solver.model.calibrated = true;
+  if (scene.ground.enabled)
+    throw_invalid("report --truth does not model the ground yet (its diffusion solutions have none); leave \"ground\" out "
+                  "of the scene for the report, or compare a bake with `lblight truth` and `compare --metric l2`",
+                  {scene.file.string(), "/ground", {}});
   const BakePlan paper = make_plan(paper_scene, ov, ctx), calibrated = make_plan(calibrated_scene, ov, ctx);
   for (std::size_t m = 0; m < paper.models.size(); ++m) {
     const ModelPlan& mp = paper.models[m];

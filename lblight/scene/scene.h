@@ -97,7 +97,16 @@ struct ModelSpec {
   Material wood_material;  // wood ("brown") nodes: material index 1
   int margin = 1;
   bool crop = true;  // shrink the lattice to the occupied nodes plus margin (same interior results)
+  bool ground = true;  // stands on the scene's ground, if it has one (false: floats, e.g. a cloud)
   std::string json_path;
+};
+
+// A reflective ground under every model and the coarse forest grid (docs/model.md sec. 4.3):
+// light arriving at it goes back up, diffusely, with the albedo of each colour channel.
+struct GroundSpec {
+  bool enabled = false;                // the scene has a "ground"
+  double height = 0.0;                 // world z of the forest's ground (models stand directly on theirs)
+  std::array<double, 3> albedo{};      // per channel, 0..1 (0: black, nothing comes back)
 };
 
 enum class LightingMode { Base, Static };
@@ -159,6 +168,7 @@ struct Scene {
   SolverSpec solver;
   OutputSpec output;
   ForestSpec forest;           // empty unless the scene has a "forest" section
+  GroundSpec ground;           // off unless the scene has a "ground" section
   std::string hash;            // "fnv1a64:<hex>" of the canonical JSON
 };
 

@@ -90,6 +90,7 @@ std::vector<ObjectSpec> build() {
                        "base solutions (mode base, the default) or one static sun (mode static)"),
                 custom("solver", ref("solver"), "solver settings"), custom("output", ref("output"), "what is written"),
                 custom("forest", ref("forest"), "instances of the models, placed in a world (docs/forest.md)"),
+                custom("ground", ref("ground"), "a reflective ground under the models and the forest (docs/model.md sec. 4.3)"),
                 text("$schema", nullptr, {}, "the schema's address, for editors"), comment()}});
   t.push_back({"model", "One model: a density source, its materials and lattice margin.",
                {required(custom("name", {{"type", "string"}, {"pattern", "^[A-Za-z0-9_.-]{1,64}$"}},
@@ -101,7 +102,12 @@ std::vector<ObjectSpec> build() {
                 required(custom("material", material, "a preset name or a material object")),
                 custom("wood_material", material, "a preset name or a material object (default: the medium's wood)"),
                 integer("margin", 1, 64, 1, "1..64 empty nodes around the density"),
-                boolean("crop", true, "crop the lattice to the occupied box")}});
+                boolean("crop", true, "crop the lattice to the occupied box"),
+                boolean("ground", true, "stands on the scene's ground (false: floats, no ground under it)")}});
+  t.push_back({"ground", "A reflective ground: light arriving at it goes back up, diffusely (docs/model.md sec. 4.3).",
+               {required(custom("albedo", channel_values(0, 1), "0..1, one number or [red, green, blue]")),
+                number("height", -1e9, 1e9, 0.0, "-1e9..1e9 world units (the forest's ground; models stand on theirs)"),
+                comment()}});
   t.push_back({"density.procedural", "A procedural density.",
                {density_type("procedural"), text("shape", "cloud", {"cloud", "plant", "box"}, "cloud, plant, box"),
                 integer("resolution", 4, 1024, 48, "4..1024"),

@@ -313,7 +313,27 @@ ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
   m.wood_material = r.has("wood_material") ? read_material(r.child("wood_material")) : default_wood_for(m.material);
   m.margin = static_cast<int>(integer_field(r, o, "margin"));
   m.crop = boolean_field(r, o, "crop");
+  m.ground = boolean_field(r, o, "ground");
   return m;
+}
+
+// "ground": {"albedo": A or [r, g, b], "height": z}
+GroundSpec read_ground(const JsonReader& r) {
+  const ObjectSpec& o = scene_object("ground");
+  r.expect_object();
+  check_fields(r, o);
+  GroundSpec g;
+  g.enabled = true;
+  g.height = number_field(r, o, "height");
+  const JsonReader a = r.child("albedo");
+  const std::string allowed = o.field("albedo").allowed;
+  if (a.json().is_array()) {
+    const std::vector<double> v = a.as_numbers(3, "[red, green, blue]", 0.0, 1.0, allowed);
+    g.albedo = {v[0], v[1], v[2]};
+  } else {
+    g.albedo.fill(a.as_number(0.0, 1.0, allowed));
+  }
+  return g;
 }
 
 Vec3d read_vec3(const JsonReader& r) {
@@ -534,8 +554,13 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   else scene.lighting.solutions = parse_solution_list("all", root.location());  // "auto" with no constraints
   if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
   if (root.has("output")) scene.output = read_output(root.child("output"));
+  if (root.has("ground")) scene.ground = read_ground(root.child("ground"));
   if (root.has("forest")) {
     scene.forest = read_forest(root.child("forest"), names, scene.lighting.sun_constraints.rotation);
+    // generated instances stand on the ground unless the generator says otherwise
+    const JsonReader forest = root.child("forest");
+    if (scene.forest.generator && scene.ground.enabled && !(forest.has("generator") && forest.child("generator").has("height")))
+      scene.forest.generator->height = scene.ground.height;
     // The coarse forest lattices are written as forest.vdb and forest.alone.<model>.vdb.
     for (std::size_t i = 0; i < scene.models.size(); ++i) {
       const std::string& n = scene.models[i].name;

@@ -460,7 +460,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     std::vector<const SolutionPlan*> batch_solutions;
     for (std::size_t q = start; q < end; ++q) {
       const SolutionPlan* sp = &mp.solutions[static_cast<std::size_t>(queue[q].solution)];
-      batch.push_back({queue[q].channel, sp->boundary});
+      batch.push_back({queue[q].channel, system_boundary(mp, *sp, queue[q].channel)});
       if (batch_solutions.empty() || batch_solutions.back() != sp) batch_solutions.push_back(sp);
     }
 

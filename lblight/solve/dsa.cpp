@@ -11,6 +11,7 @@ DiffusionCorrection::DiffusionCorrection(const LatticeGeometry& g, const Channel
   std::array<DiffusionMode, kMaxMaterials> modes{};
   std::array<CollisionOp<double>, kMaxMaterials> ops{};
   for (int k = 0; k < g.material_count; ++k) {
+    if (k == kMaterialGround) continue;  // no equilibrium: shape 0, handled per node below
     modes[k] = diffusion_mode(ch.omega[k], ch.absorbs[k]);
     shapes_[k] = modes[k].shape;
     ops[k] = channel_op(ch, k);
@@ -25,6 +26,15 @@ DiffusionCorrection::DiffusionCorrection(const LatticeGeometry& g, const Channel
         const std::size_t i = interior_.index(x, y, z);
         const std::size_t node = dims_.index(x + 1, y + 1, z + 1);
         const int k = g.material[node];
+        if (k == kMaterialGround) {
+          // The ground as the diffusion equation sees it: a sink with no correction of its own
+          // (like the vacuum outside); the LB steps carry what it reflects.
+          a[i] = 1.0;
+          D[i] = st.min_diffusion;
+          source_per_total_[i] = 0.0;
+          total_per_phi_[i] = 0.0;
+          continue;
+        }
         const double rho = g.density[node];
         const DiffusionMode& m = modes[k];
         a[i] = rho * m.loss;

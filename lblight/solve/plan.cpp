@@ -7,6 +7,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
 #include "lblight/lattice/d3q19.h"
+#include "lblight/lattice/ground.h"
 #include "lblight/scene/forest_coarse.h"
 #include "lblight/scene/load_model.h"
 
@@ -56,9 +57,10 @@ ModelGrid crop_to_occupied(const ModelGrid& g) {
   return c;
 }
 
-LatticeGeometry build_lattice(const ModelGrid& g, int margin) {
+LatticeGeometry build_lattice(const ModelGrid& g, int margin, int ground_gap) {
   LatticeGeometry lat;
-  lat.dims = {g.dims.nx + 2 * margin, g.dims.ny + 2 * margin, g.dims.nz + 2 * margin};
+  const int below = layers_below(margin, ground_gap);
+  lat.dims = {g.dims.nx + 2 * margin, g.dims.ny + 2 * margin, g.dims.nz + margin + below};
   lat.density.assign(lat.dims.count(), 0.0f);
   lat.material.assign(lat.dims.count(), kMaterialMedium);
   bool wood = false;
@@ -66,13 +68,26 @@ LatticeGeometry build_lattice(const ModelGrid& g, int margin) {
     for (int j = 0; j < g.dims.ny; ++j)
       for (int i = 0; i < g.dims.nx; ++i) {
         const std::size_t src = g.dims.index(i, j, k);
-        const std::size_t dst = lat.dims.index(i + margin, j + margin, k + margin);
+        const std::size_t dst = lat.dims.index(i + margin, j + margin, k + below);
         lat.density[dst] = g.density[src];
         lat.material[dst] = g.material[src];
         wood = wood || (g.material[src] == kMaterialWood && g.density[src] > 0.0f);
       }
   lat.material_count = wood ? 2 : 1;
+  if (ground_gap >= 0) {
+    for (int j = 1; j < lat.dims.ny - 1; ++j)
+      for (int i = 1; i < lat.dims.nx - 1; ++i) {
+        lat.density[lat.dims.index(i, j, 1)] = 1.0f;
+        lat.material[lat.dims.index(i, j, 1)] = kMaterialGround;
+      }
+    lat.material_count = kMaterialGround + 1;
+  }
   return lat;
+}
+
+std::array<double, 19> system_boundary(const ModelPlan& mp, const SolutionPlan& s, int channel) {
+  if (!mp.ground.on) return s.boundary;
+  return with_open_ground(s.boundary, mp.ground.channel_albedo.at(static_cast<std::size_t>(channel)), mp.ground.share);
 }
 
 namespace {
@@ -131,7 +146,10 @@ bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int coun
 
 // The model's grid, checked (docs/model.md sec. 6), cropped to its occupied box and grown into
 // its lattice.
-void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector<std::string>& warnings) {
+// ground_index: the index coordinate (z) of the ground layer, or none for directly below the
+// cropped grid; used only when the lattice stands on the scene's ground.
+void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector<std::string>& warnings,
+                  bool on_ground, std::optional<long long> ground_index = std::nullopt) {
   const ModelSpec& spec = *mp.spec;
   mp.grid = std::move(grid);
   mp.stats = check_stability(spec, mp.grid, scene, warnings);
@@ -148,17 +166,28 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
     mp.grid = crop_to_occupied(mp.grid);
     mp.savings.cropped = mp.grid.dims.count() != full.count();
   }
+  mp.ground.on = on_ground && scene.ground.enabled;
+  if (mp.ground.on) {
+    mp.ground.albedo = scene.ground.albedo;
+    mp.ground.share = ground_share(ambient_boundary(scene.solver.model));
+    const long long lowest = mp.grid.index_min[2];
+    mp.ground.gap = ground_index ? static_cast<int>(std::max(0LL, lowest - 1 - *ground_index)) : 0;
+    if (ground_index && lowest - 1 < *ground_index)
+      warnings.push_back("'" + spec.name + "': the medium reaches " + std::to_string(*ground_index + 1 - lowest) +
+                         " layer(s) below the ground's height; its ground is placed under its lowest layer instead");
+  }
   // The lattice and what any bake of it holds on the host besides (one solution's totals, B00's
   // sum), checked before the lattice is built: a thin grid's margin can multiply its nodes.
   const Dims& gd = mp.grid.dims;
-  const double nodes = static_cast<double>(gd.nx + 2 * spec.margin) * (gd.ny + 2 * spec.margin) * (gd.nz + 2 * spec.margin);
-  check_host_memory(nodes * kHostBytesPerLatticeNode,
-                    "model '" + spec.name + "' (a " + std::to_string(gd.nx + 2 * spec.margin) + "x" +
-                        std::to_string(gd.ny + 2 * spec.margin) + "x" + std::to_string(gd.nz + 2 * spec.margin) +
-                        " lattice)",
+  const int gap = mp.ground.on ? mp.ground.gap : -1;
+  const Dims ld{gd.nx + 2 * spec.margin, gd.ny + 2 * spec.margin, gd.nz + spec.margin + layers_below(spec.margin, gap)};
+  check_host_memory(static_cast<double>(ld.count()) * kHostBytesPerLatticeNode,
+                    "model '" + spec.name + "' (a " + std::to_string(ld.nx) + "x" + std::to_string(ld.ny) + "x" +
+                        std::to_string(ld.nz) + " lattice)",
                     "lower the resolution, crop the density source or lower margin", {scene.file.string(), spec.json_path, {}});
-  mp.lattice = build_lattice(mp.grid, spec.margin);
-  for (int c = 0; c < 3; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
+  mp.lattice = build_lattice(mp.grid, spec.margin, gap);
+  for (int c = 0; c < 2; ++c) mp.lattice_index_min[c] = mp.grid.index_min[c] - spec.margin;
+  mp.lattice_index_min[2] = mp.grid.index_min[2] - layers_below(spec.margin, gap);
 }
 
 // One system per distinct channel: a grey material solves once and fills R, G and B.
@@ -171,12 +200,18 @@ void plan_channels(ModelPlan& mp, const LbModel& model) {
     ch.omega[kMaterialWood] = build_model_omega(spec.wood_material.channel[c], model);
     ch.absorbs[kMaterialWood] = model_absorbs(spec.wood_material.absorbs, model);
     ch.voxel_average.fill(model.calibrated && model.voxel_average);
+    if (mp.ground.on) {
+      ch.omega[kMaterialGround] = ground_omega(mp.ground.albedo[c], mp.ground.share);
+      ch.absorbs[kMaterialGround] = true;
+      ch.voxel_average[kMaterialGround] = false;
+    }
     int found = -1;
     for (std::size_t u = 0; u < mp.channels.size(); ++u)
       if (same_channel(mp.channels[u], ch, mp.lattice.material_count)) found = static_cast<int>(u);
     if (found < 0) {
       found = static_cast<int>(mp.channels.size());
       mp.channels.push_back(ch);
+      if (mp.ground.on) mp.ground.channel_albedo.push_back(mp.ground.albedo[c]);
     }
     mp.channel_of[c] = found;
   }
@@ -277,7 +312,7 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
 // A coarse lattice as a model of its own: its spec (kept alive by the forest plan), grid and the
 // scene's lighting and solver settings.
 void add_coarse_plan(BakePlan& plan, const Scene& scene, const PlanOverrides& ov, const std::string& name,
-                     CoarseGrid coarse, PlanRole role, const std::string& alone_model) {
+                     CoarseGrid coarse, PlanRole role, const std::string& alone_model, double cell) {
   auto spec = std::make_shared<ModelSpec>();
   spec->name = name;
   spec->material = coarse.medium;
@@ -291,7 +326,15 @@ void add_coarse_plan(BakePlan& plan, const Scene& scene, const PlanOverrides& ov
   mp.spec = spec.get();
   mp.role = role;
   mp.alone_model = alone_model;
-  plan_lattice(mp, scene, std::move(coarse.grid), plan.warnings);
+  // The forest's ground is the highest layer of cells wholly below the ground's height; a model
+  // alone stands directly on its ground, as its instances stand on the forest's.
+  std::optional<long long> ground_index;
+  if (role == PlanRole::ForestCoarse)
+    ground_index = static_cast<long long>(std::floor(scene.ground.height / cell - 0.5 + 1e-9));
+  bool on_ground = true;
+  for (const ModelSpec& m : scene.models)
+    if (role == PlanRole::ForestAlone && m.name == alone_model) on_ground = m.ground;
+  plan_lattice(mp, scene, std::move(coarse.grid), plan.warnings, on_ground, ground_index);
   plan_channels(mp, scene.solver.model);
   plan_solutions(mp, scene, ov);
   PlanOverrides coarse_ov = ov;
@@ -327,10 +370,11 @@ void plan_forest(BakePlan& plan, const Scene& scene, const PlanOverrides& ov) {
   fp.cell_size = cell;
   for (std::size_t m = 0; m < cf.alone.size(); ++m) warn_clamped(cf.alone[m], "coarse grid of '" + scene.models[m].name + "' alone");
   const std::size_t fine_models = plan.models.size();
-  add_coarse_plan(plan, scene, ov, kForestCoarseName, std::move(cf.forest), PlanRole::ForestCoarse, {});
+  add_coarse_plan(plan, scene, ov, kForestCoarseName, std::move(cf.forest), PlanRole::ForestCoarse, {}, cell);
   for (std::size_t m = 0; m < fine_models; ++m) {
     const std::string model = scene.models[m].name;
-    add_coarse_plan(plan, scene, ov, forest_alone_name(model), std::move(cf.alone[m]), PlanRole::ForestAlone, model);
+    add_coarse_plan(plan, scene, ov, forest_alone_name(model), std::move(cf.alone[m]), PlanRole::ForestAlone, model,
+                    cell);
   }
 }
 
@@ -346,7 +390,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
   for (const ModelSpec& spec : scene.models) {
     ModelPlan mp;
     mp.spec = &spec;
-    plan_lattice(mp, scene, load_model_grid(spec, scene, ctx), plan.warnings);
+    plan_lattice(mp, scene, load_model_grid(spec, scene, ctx), plan.warnings, spec.ground);
     plan_channels(mp, scene.solver.model);
     plan_solutions(mp, scene, ov);
     plan_steps(mp, scene, ov, plan.precision);

@@ -77,6 +77,16 @@ struct StepPolicy {
 // (docs/forest.md): the whole forest, or one model standing alone on the same cells.
 enum class PlanRole { Model, ForestCoarse, ForestAlone };
 
+// The ground a lattice stands on (docs/model.md sec. 4.3): lattice layer 1 holds ground nodes,
+// then `gap` empty layers, then the grid's lowest layer.
+struct GroundPlan {
+  bool on = false;
+  int gap = 0;
+  std::array<double, 3> albedo{};     // per colour channel
+  std::vector<double> channel_albedo;  // per entry of ModelPlan::channels
+  std::array<double, 19> share{};     // u_m: how the reflected light splits over the upward directions
+};
+
 struct ModelPlan {
   const ModelSpec* spec = nullptr;
   PlanRole role = PlanRole::Model;
@@ -87,6 +97,7 @@ struct ModelPlan {
   std::vector<ChannelMaterials> channels;  // distinct channel materials (1 when R = G = B)
   std::array<int, 3> channel_of{};         // colour channel -> entry of `channels`
   std::vector<SolutionPlan> solutions;
+  GroundPlan ground;
   PlanSavings savings;
   StepPolicy steps;
   GridStats stats;
@@ -125,8 +136,17 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {}, cons
 // boundary light it saw before: outside the occupied box light only streams.
 ModelGrid crop_to_occupied(const ModelGrid& grid);
 
-// The lattice for a grid: grown by `margin` empty nodes on every side (docs/model.md sec. 4).
-LatticeGeometry build_lattice(const ModelGrid& grid, int margin);
+// The lattice for a grid: grown by `margin` empty nodes on every side (docs/model.md sec. 4). With
+// ground_gap >= 0 the bottom is instead the boundary layer, a layer of ground nodes and ground_gap
+// empty layers below the grid (docs/model.md sec. 4.3).
+LatticeGeometry build_lattice(const ModelGrid& grid, int margin, int ground_gap = -1);
+// Lattice layers below the grid's lowest one.
+inline int layers_below(int margin, int ground_gap) { return ground_gap >= 0 ? 2 + ground_gap : margin; }
+
+// The boundary values system (solution s, distinct channel `channel`) runs with: the solution's
+// own, plus the open ground's reflection of what it sends down when the lattice stands on the
+// ground (lattice/ground.h).
+std::array<double, 19> system_boundary(const ModelPlan& mp, const SolutionPlan& s, int channel);
 
 std::string base_grid_name(int index);  // "B07"
 

@@ -27,6 +27,7 @@ ModelPlan single_solution_plan(const ModelPlan& mp, const SolutionPlan& sol, int
   sub.solutions = {sol};
   sub.solutions[0].derived = false;  // the report solves every solution it studies
   sub.channels = {mp.channels[static_cast<std::size_t>(distinct_channel)]};
+  if (sub.ground.on) sub.ground.channel_albedo = {mp.ground.channel_albedo[static_cast<std::size_t>(distinct_channel)]};
   sub.channel_of = {0, 0, 0};
   return sub;
 }
@@ -39,7 +40,7 @@ std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, d
                                      const RunContext& ctx, ReportReference& info) {
   const auto t0 = Clock::now();
   auto solver = cpu.create(sub.lattice, sub.channels, {Precision::Float64, 1, StoreMode::Auto});
-  solver->reset({{0, sub.solutions[0].boundary}});
+  solver->reset({{0, system_boundary(sub, sub.solutions[0], 0)}});
   ConvergenceMonitor monitor(Precision::Float64);
   std::vector<Residual> r;
   double residual = 1e-10;
