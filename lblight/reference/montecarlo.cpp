@@ -81,27 +81,56 @@ Vec scatter_hg(const Vec& d, double g, double u1, double u2) {
 }
 
 // Where photons start: faces of the interior box [0.5, n - 1.5] per axis (node i is the centre of
-// the unit voxel [i - 0.5, i + 0.5]), each with its share of the incident power.
+// the unit voxel [i - 0.5, i + 0.5]), each with its share of the incident power. Over a ground the
+// box starts at the ground layer's top face, nothing enters through the ground, and the open ground
+// outside sends in its reflection of the downward light: radiance A E / pi, upward, through the sides.
 struct EntryFace {
   int face = 0;  // 2 axis + (0: the low side, 1: the high side)
   const LightSource* source = nullptr;
   double power = 0;
+  bool from_ground = false;  // the open ground's diffuse light (Lambertian, upward only)
 };
+
+// Irradiance a source puts on a horizontal plane from above.
+double downward_irradiance(const LightSource& s) {
+  return s.kind == LightSource::Kind::Collimated ? s.fluence * std::max(0.0, -s.direction[2]) : s.fluence / 4.0;
+}
+
+// A cosine-weighted direction about `axis`, pointing to its high side unless `low`.
+Vec lambertian(PhotonRng& rng, int axis, bool low) {
+  const double c = std::sqrt(rng.uniform()), sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+  const double phi = 2.0 * kPi * rng.uniform();
+  Vec d;
+  const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+  d[axis] = low ? -c : c;
+  d[a1] = sn * std::cos(phi);
+  d[a2] = sn * std::sin(phi);
+  return d;
+}
 
 class Sources {
  public:
-  Sources(const Dims& dims, const Illumination& light, bool periodic_xy) : periodic_(periodic_xy) {
-    ext_ = {static_cast<double>(dims.nx - 2), static_cast<double>(dims.ny - 2), static_cast<double>(dims.nz - 2)};
+  // ground_layer: the lattice z of the ground nodes (-1: none), albedo its albedo.
+  Sources(const Dims& dims, const Illumination& light, bool periodic_xy, int ground_layer, double albedo)
+      : periodic_(periodic_xy) {
+    lo_ = {0.5, 0.5, ground_layer >= 0 ? ground_layer + 0.5 : 0.5};
+    ext_ = {static_cast<double>(dims.nx - 2), static_cast<double>(dims.ny - 2), dims.nz - 1.5 - lo_[2]};
     for (const LightSource& s : light) {
       for (int axis = periodic_xy ? 2 : 0; axis < 3; ++axis) {
         const double area = ext_[(axis + 1) % 3] * ext_[(axis + 2) % 3];
+        const bool bottom_closed = axis == 2 && ground_layer >= 0;
         if (s.kind == LightSource::Kind::Collimated) {
           const double dn = s.direction[axis];
-          if (dn != 0.0) add(2 * axis + (dn > 0 ? 0 : 1), &s, s.fluence * area * std::abs(dn));
+          if (dn > 0.0 && !bottom_closed) add(2 * axis, &s, s.fluence * area * dn);
+          if (dn < 0.0) add(2 * axis + 1, &s, s.fluence * area * -dn);
         } else {  // radiance fluence / 4 pi: pi times that enters per unit area
-          add(2 * axis, &s, s.fluence * area / 4.0);
+          if (!bottom_closed) add(2 * axis, &s, s.fluence * area / 4.0);
           add(2 * axis + 1, &s, s.fluence * area / 4.0);
         }
+        // radiance L = A E / pi from the upward half of a side face's inward hemisphere: pi L / 2
+        if (ground_layer >= 0 && axis < 2)
+          for (int side = 0; side < 2; ++side)
+            add(2 * axis + side, &s, albedo * downward_irradiance(s) / 2.0 * area, true);
       }
     }
   }
@@ -115,30 +144,26 @@ class Sources {
     const EntryFace& f = faces_[k];
     const int axis = f.face / 2;
     const bool high = f.face % 2 == 1;
-    for (int a = 0; a < 3; ++a) p[a] = 0.5 + rng.uniform() * ext_[a];
-    p[axis] = high ? 0.5 + ext_[axis] : 0.5;
-    if (f.source->kind == LightSource::Kind::Collimated) {
+    for (int a = 0; a < 3; ++a) p[a] = lo_[a] + rng.uniform() * ext_[a];
+    p[axis] = high ? lo_[axis] + ext_[axis] : lo_[axis];
+    if (f.source->kind == LightSource::Kind::Collimated && !f.from_ground) {
       d = f.source->direction;
       return;
     }
     // Lambertian into the box: cos(theta) = sqrt(u) about the inward normal.
-    const double c = std::sqrt(rng.uniform()), sn = std::sqrt(std::max(0.0, 1.0 - c * c));
-    const double phi = 2.0 * kPi * rng.uniform();
-    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-    d[axis] = high ? -c : c;
-    d[a1] = sn * std::cos(phi);
-    d[a2] = sn * std::sin(phi);
+    d = lambertian(rng, axis, high);
+    if (f.from_ground) d[2] = std::abs(d[2]);  // the upward half, which the same law gives mirrored
   }
 
  private:
-  void add(int face, const LightSource* s, double power) {
+  void add(int face, const LightSource* s, double power, bool from_ground = false) {
     if (!(power > 0)) return;
     total_ += power;
-    faces_.push_back({face, s, power});
+    faces_.push_back({face, s, power, from_ground});
     cumulative_.push_back(total_);
   }
   bool periodic_;
-  Vec ext_{};
+  Vec lo_{}, ext_{};
   std::vector<EntryFace> faces_;
   std::vector<double> cumulative_;
   double total_ = 0;
@@ -156,14 +181,16 @@ struct BatchTally {
 };
 
 // One photon from emission to escape, absorption or roulette.
+// ground_layer >= 0: photons entering that layer are reflected at its top face with `albedo`.
 void trace_photon(const LatticeGeometry& lat, const ChannelOptics& optics, const Sources& sources, bool periodic_xy,
-                  PhotonRng& rng, BatchTally& tally) {
+                  int ground_layer, double albedo, PhotonRng& rng, BatchTally& tally) {
   const Dims& dims = lat.dims;
   const int n[3] = {dims.nx, dims.ny, dims.nz};
+  const int z_min = ground_layer >= 0 ? ground_layer + 1 : 1;
   Vec p, d;
   sources.emit(rng, p, d);
   int v[3];
-  for (int a = 0; a < 3; ++a) v[a] = std::clamp(static_cast<int>(std::floor(p[a] + 0.5)), 1, n[a] - 2);
+  for (int a = 0; a < 3; ++a) v[a] = std::clamp(static_cast<int>(std::floor(p[a] + 0.5)), a == 2 ? z_min : 1, n[a] - 2);
   double w = 1.0;
   double tau = -std::log(rng.uniform());
   int collisions = 0;
@@ -211,6 +238,16 @@ void trace_photon(const LatticeGeometry& lat, const ChannelOptics& optics, const
     for (int a = 0; a < 3; ++a) p[a] += t * d[a];
     const int step = d[axis] > 0 ? 1 : -1;
     p[axis] = v[axis] + 0.5 * step;
+    if (axis == 2 && step < 0 && v[2] == z_min && ground_layer >= 0) {  // reaches the ground
+      add_fixed(tally.escaped[4], w * (1.0 - albedo));
+      w *= albedo;
+      if (w < kRouletteWeight) {
+        if (!(w > 0) || rng.uniform() * kRouletteWeight >= w) return;
+        w = kRouletteWeight;
+      }
+      d = lambertian(rng, 2, false);
+      continue;
+    }
     v[axis] += step;
     if (v[axis] >= 1 && v[axis] <= n[axis] - 2) continue;
     if (periodic_xy && axis < 2) {  // wrap to the other side
@@ -242,21 +279,27 @@ FluenceEstimate trace_fluence(const LatticeGeometry& lat, const ChannelOptics& o
   const std::size_t count = dims.count();
   check_host_memory(kMonteCarloBytesPerNode * static_cast<double>(count), "the Monte Carlo reference's tallies",
                     "use a coarser density grid");
-  const Sources sources(dims, light, o.periodic_xy);
+  int ground_layer = -1;
+  if (o.ground_albedo >= 0)
+    for (int z = 1; z + 1 < dims.nz && ground_layer < 0; ++z)
+      if (lat.material[dims.index(1, 1, z)] == kMaterialGround) ground_layer = z;
+  const double albedo = std::max(0.0, o.ground_albedo);
+  const Sources sources(dims, light, o.periodic_xy, ground_layer, albedo);
 
   // Which nodes the error is measured on: the occupied ones, else every interior one.
   std::vector<std::size_t> measured;
   for (int z = 1; z + 1 < dims.nz; ++z)
     for (int y = 1; y + 1 < dims.ny; ++y)
       for (int x = 1; x + 1 < dims.nx; ++x)
-        if (lat.density[dims.index(x, y, z)] > 0.0f) measured.push_back(dims.index(x, y, z));
+        if (lat.density[dims.index(x, y, z)] > 0.0f && lat.material[dims.index(x, y, z)] != kMaterialGround)
+          measured.push_back(dims.index(x, y, z));
   if (measured.empty())
     for (int z = 1; z + 1 < dims.nz; ++z)
       for (int y = 1; y + 1 < dims.ny; ++y)
         for (int x = 1; x + 1 < dims.nx; ++x) measured.push_back(dims.index(x, y, z));
 
-  double empty_fluence = 0;
-  for (const LightSource& s : light) empty_fluence += s.fluence;
+  double empty_fluence = 0;  // over a ground: the beam's and the open ground's 2 A E
+  for (const LightSource& s : light) empty_fluence += s.fluence + (ground_layer >= 0 ? 2.0 * albedo * downward_irradiance(s) : 0.0);
 
   FluenceEstimate est;
   est.power.incident = sources.power();
@@ -310,7 +353,7 @@ FluenceEstimate trace_fluence(const LatticeGeometry& lat, const ChannelOptics& o
       tbb::parallel_for(tbb::blocked_range<std::uint64_t>(0, per_batch, 64), [&](const auto& r) {
         for (std::uint64_t k = r.begin(); k != r.end(); ++k) {
           PhotonRng rng(o.seed, stream, first + k);
-          trace_photon(lat, optics, sources, o.periodic_xy, rng, tally);
+          trace_photon(lat, optics, sources, o.periodic_xy, ground_layer, albedo, rng, tally);
         }
       });
     });
@@ -322,7 +365,7 @@ FluenceEstimate trace_fluence(const LatticeGeometry& lat, const ChannelOptics& o
       tally.track[i] = 0;
       sum[i] += f;
       sum_sq[i] += f * f;
-      absorbed += static_cast<double>(lat.density[i]) * optics[lat.material[i]].sigma_a * f;
+      if (lat.material[i] != kMaterialGround) absorbed += static_cast<double>(lat.density[i]) * optics[lat.material[i]].sigma_a * f;
     }
     abs_sum += absorbed;
     abs_sq += absorbed * absorbed;

@@ -49,13 +49,17 @@ struct MonteCarloOptions {
   int min_batches = 16;                        // before the error is trusted
   std::uint64_t seed = 1;
   bool periodic_xy = false;  // x and y wrap around (a laterally infinite slab; tests)
+  // >= 0: the lattice stands on a Lambertian ground of this albedo, its kMaterialGround layer
+  // (docs/truth.md sec. 8): photons reaching the layer's top face are reflected there, cosine-
+  // weighted, and the open ground around the box sends its diffuse light in through the sides.
+  double ground_albedo = -1;
 };
 
 // Where the light went, in units of the incident power (Collimated: irradiance x the box's area
 // across the beam; Isotropic: fluence / 4 x its surface), each with its standard error.
 struct PowerBalance {
   double incident = 0;
-  std::array<double, 6> escaped{};  // through the faces -x, +x, -y, +y, -z, +z
+  std::array<double, 6> escaped{};  // through the faces -x, +x, -y, +y, -z, +z (-z: into the ground, with one)
   std::array<double, 6> escaped_se{};
   double absorbed = 0, absorbed_se = 0;  // sum over voxels of rho sigma_a x fluence
   double lost = 0;  // weight of photons stopped after kMaxCollisions (should stay 0)

@@ -33,8 +33,9 @@ SolutionResult trace_solution(const ModelPlan& mp, const Scene& scene, const Sol
   for (int ch = 0; ch < static_cast<int>(mp.channels.size()); ++ch) {
     std::function<void(const FluenceEstimate&)> each;
     if (progress) each = [&](const FluenceEstimate& e) { progress(ch, e); };
-    const FluenceEstimate e =
-        trace_fluence(mp.lattice, channel_optics(mp, ch), light, options, stream_base * 4 + ch, ctx, each);
+    MonteCarloOptions o = options;
+    o.ground_albedo = mp.ground.on ? mp.ground.channel_albedo[static_cast<std::size_t>(ch)] : -1.0;
+    const FluenceEstimate e = trace_fluence(mp.lattice, channel_optics(mp, ch), light, o, stream_base * 4 + ch, ctx, each);
     mean[ch].assign(e.mean.begin(), e.mean.end());
     se[ch].assign(e.std_error.begin(), e.std_error.end());
     r.iterations = std::max(r.iterations, e.batches);
