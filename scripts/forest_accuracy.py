@@ -62,6 +62,13 @@ def instances(offsets):
     return out
 
 
+def with_ground(scene, albedo):
+    # every model's base voxels sit at z = 0 (instances at -oz), so the ground is right under them
+    if albedo >= 0:
+        scene["ground"] = {"albedo": albedo, "height": 0}
+    return scene
+
+
 def scene_base(offsets, cell):
     return {"version": 1, "name": "small-forest", "models": models(),
             "lighting": {"mode": "base", "solutions": "auto", "sun_range": {"min_elevation": 0, "max_elevation": 90},
@@ -114,6 +121,8 @@ def main():
     ap.add_argument("--azimuth", type=float, default=200)
     ap.add_argument("--ambient", type=float, default=0.02)
     ap.add_argument("--cell", type=float, default=2, help="coarse cell edge in model voxels")
+    ap.add_argument("--albedo", type=float, default=0.15, help="ground albedo (negative: no ground)")
+    ap.add_argument("--suffix", default="", help="appended to results.csv and accuracy.png")
     a = ap.parse_args()
     lb = os.path.abspath(a.lblight)
     os.makedirs(a.work, exist_ok=True)
@@ -126,7 +135,7 @@ def main():
     for m in json.loads(out)["models"]:
         t = m["lattice"]["index_to_world"]
         offsets[m["name"]] = (t[3], t[7], t[11])
-    json.dump(scene_base(offsets, a.cell), open(os.path.join(a.work, "forest.json"), "w"), indent=1)
+    json.dump(with_ground(scene_base(offsets, a.cell), a.albedo), open(os.path.join(a.work, "forest.json"), "w"), indent=1)
     base_seconds, _ = run([lb, "-q", "bake", "forest.json", "-o", "bake", "--backend", "cpu"], a.work)
     manifest = json.load(open(os.path.join(a.work, "bake", "manifest.json")))
     seconds = {m["name"]: sum(s["seconds"] for s in m["solutions"]) for m in manifest["models"]}
@@ -139,7 +148,7 @@ def main():
         common = ["--sun-elevation", str(e), "--sun-azimuth", str(a.azimuth), "--ambient", str(a.ambient)]
         t_local, _ = run([lb, "relight", "bake", *common, "--local", "-o", f"{tag}-local.vdb"], a.work)
         t_coarse, _ = run([lb, "relight", "bake", *common, "-o", f"{tag}-coarse.vdb"], a.work)
-        json.dump(scene_full(f"{tag}-local.vdb", e, a.azimuth, a.ambient), open(os.path.join(a.work, f"{tag}-full.json"), "w"))
+        json.dump(with_ground(scene_full(f"{tag}-local.vdb", e, a.azimuth, a.ambient), a.albedo), open(os.path.join(a.work, f"{tag}-full.json"), "w"))
         t_full, _ = run([lb, "-q", "bake", f"{tag}-full.json", "-o", f"{tag}-full", "--backend", "cpu"], a.work)
         full_manifest = json.load(open(os.path.join(a.work, f"{tag}-full", "manifest.json")))
         full_solve = sum(s["seconds"] for s in full_manifest["models"][0]["solutions"])
@@ -176,8 +185,8 @@ def main():
         gap = np.full((panels[0].shape[0], 6, 3), 255)
         pictures.append(np.concatenate([panels[0], gap, panels[1], gap, panels[2]], axis=1))
     sheet = np.concatenate([np.vstack([p, np.full((6, p.shape[1], 3), 255)]) for p in pictures])
-    png(os.path.join(a.out, "accuracy.png"), sheet.repeat(3, axis=0).repeat(3, axis=1))
-    with open(os.path.join(a.out, "results.csv"), "w", newline="") as f:
+    png(os.path.join(a.out, f"accuracy{a.suffix}.png"), sheet.repeat(3, axis=0).repeat(3, axis=1))
+    with open(os.path.join(a.out, f"results{a.suffix}.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
         w.writerows(rows)

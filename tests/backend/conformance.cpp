@@ -9,6 +9,8 @@
 
 #include "backends/cuda/lb_device.h"
 #include "lblight/backend/node_rules.h"
+#include "lblight/lattice/ground.h"
+#include "lblight/lattice/lb_model.h"
 #include "lblight/lattice/sun.h"
 #include "lblight/solve/krylov.h"
 #include "tests/backend/conformance.h"
@@ -45,6 +47,34 @@ TEST_CASE("Every backend matches the literal reference update (mixed materials, 
           CHECK(max_relative_difference(want, f64, 1e-3) < 1e-12);
         }
       }
+}
+
+TEST_CASE("Every backend runs a ground layer as the literal reference does (docs/model.md sec. 4.3)", "[conformance][ground]") {
+  LatticeGeometry g = random_lattice({19, 14, 11}, 0.95f, 0.15, 7);
+  for (int y = 1; y < 13; ++y)
+    for (int x = 1; x < 18; ++x) {
+      g.density[g.dims.index(x, y, 1)] = 1.0f;
+      g.material[g.dims.index(x, y, 1)] = kMaterialGround;
+    }
+  g.material_count = 3;
+  const OpticalParams leaf{0.109, 0.891, -0.12}, bark{0.109, 0.891, -1.0};
+  const std::array<double, 19> share = ground_share(ambient_boundary(LbModel{}));
+  ChannelMaterials ch = channel(leaf, true, bark);
+  ch.omega[kMaterialGround] = ground_omega(0.45, share);
+  ch.absorbs[kMaterialGround] = true;
+  const std::array<double, 19> boundary = with_open_ground(base(13), 0.45, share);
+  ReferenceLattice ref(g, {build_omega(leaf), build_omega(bark), ch.omega[kMaterialGround]}, {true, false, true}, boundary);
+  ref.step(23);
+  const auto want = ref.totals();
+  for (const BoundBackend& b : conformance_backends()) {
+    INFO(b.label);
+    const auto f32 = solve_totals(*b.backend, g, {ch}, system_for(0, boundary), 23);
+    CHECK(max_relative_difference(want, f32, 1e-3) < 1e-5);
+    if (b.backend->supports(Precision::Float64)) {
+      const auto f64 = solve_totals_f64(*b.backend, g, {ch}, system_for(0, boundary), 23);
+      CHECK(max_relative_difference(want, f64, 1e-3) < 1e-12);
+    }
+  }
 }
 
 TEST_CASE("Every backend matches OpenMP to 1e-5 in float32 (batch of solutions and channels)", "[conformance][slow]") {

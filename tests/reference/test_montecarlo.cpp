@@ -119,6 +119,44 @@ TEST_CASE("Monte Carlo: an empty lattice holds the incident fluence (1 for a bea
   }
 }
 
+TEST_CASE("Monte Carlo over a Lambertian ground: an empty box holds 1 + 2 A E everywhere; power balance closes",
+          "[ground]") {
+  // A ground layer at z = 1 (docs/truth.md sec. 8): the open ground around the box and the ground
+  // inside it send up radiance A E / pi, whose fluence is 2 A E (E: the irradiance from above).
+  LatticeGeometry g = filled_lattice(9, 8, 8, 0.0f);
+  for (int y = 1; y < 7; ++y)
+    for (int x = 1; x < 8; ++x) {
+      g.density[g.dims.index(x, y, 1)] = 1.0f;
+      g.material[g.dims.index(x, y, 1)] = kMaterialGround;
+    }
+  g.material_count = 3;
+  const double albedo = 0.4;
+  MonteCarloOptions o = fixed_photons(4096, 16);
+  o.ground_albedo = albedo;
+  for (int j : {6, 12, 1}) {
+    CAPTURE(j);
+    const Illumination light = base_solution_light(j);
+    const double e_down = std::max(0.0, -light[0].direction[2]);
+    const double expected = 1.0 + 2.0 * albedo * e_down;
+    const FluenceEstimate e = trace_fluence(g, optics(0.1, 0.5, 0.0), light, o, 9);
+    REQUIRE(e.power.lost == 0.0);
+    double worst = 0;
+    for (int z = 2; z + 1 < g.dims.nz; ++z)
+      for (int y = 1; y + 1 < g.dims.ny; ++y)
+        for (int x = 1; x + 1 < g.dims.nx; ++x) {
+          const std::size_t i = g.dims.index(x, y, z);
+          worst = std::max(worst, std::abs(e.mean[i] - expected) / e.std_error[i]);
+        }
+    CHECK(worst < 5.0);
+    // what came in left through the faces or stayed in the ground (tallied on the -z face)
+    // (roulette keeps it in expectation only)
+    double out = 0, out_var = 0;
+    for (int f = 0; f < 6; ++f) out += e.power.escaped[f], out_var += e.power.escaped_se[f] * e.power.escaped_se[f];
+    CHECK(std::abs(out - e.power.incident) < 5 * std::sqrt(out_var) + 1e-9 * e.power.incident);
+    CHECK(e.mean[0] == Approx(expected));  // boundary nodes: the open-air value
+  }
+}
+
 TEST_CASE("Monte Carlo: a pure absorber follows Beer-Lambert layer by layer within its standard error") {
   const double sa = 0.3;
   const LatticeGeometry g = filled_lattice(6, 6, 12, 1.0f);

@@ -76,6 +76,12 @@ StepBalance step_balance(const LatticeGeometry& g, const std::vector<OmegaMatrix
           ft[0] = 0.0;
         }
         const OmegaMatrix& om = omega[static_cast<std::size_t>(mat)];
+        if (inside && mat == kMaterialGround)
+          for (int m = 0; m < kQ; ++m) {
+            double s = 0;
+            for (int k = 0; k < kQ; ++k) s += om[m * kQ + k] * ft[k];
+            b.ground -= g.density[p] * s;  // sum of post minus sum of f~
+          }
         for (int m = 0; m < kQ; ++m) {
           const int qx = x + d3q19::cx(m), qy = y + d3q19::cy(m), qz = z + d3q19::cz(m);
           const bool on_lattice = qx >= 0 && qy >= 0 && qz >= 0 && qx < d.nx && qy < d.ny && qz < d.nz;

@@ -21,7 +21,8 @@ struct StepBalance {
   double inflow = 0;    // post-collision values boundary nodes push into interior nodes
   double outflow = 0;   // post-collision values interior nodes push into boundary nodes (dropped)
   double absorbed = 0;  // f_0 that absorbing interior nodes dump (f~_0 = 0)
-  double predicted_next() const { return stored + inflow - outflow - absorbed; }
+  double ground = 0;    // what ground nodes (kMaterialGround) keep: their columns do not sum to 0
+  double predicted_next() const { return stored + inflow - outflow - absorbed - ground; }
 };
 // Evaluates the step in double with the dense Omega of each material.
 StepBalance step_balance(const LatticeGeometry& g, const std::vector<OmegaMatrix>& omega_per_material,
