@@ -33,7 +33,7 @@ std::array<double, kQ> with_open_ground(const std::array<double, kQ>& source, do
     if (downward(n)) down += source[n];
   std::array<double, kQ> b = source;
   for (int m = 1; m < kQ; ++m)
-    if (upward(m)) b[m] += albedo * share[m] * down;
+    if (upward(m)) b[m] = albedo * share[m] * down;  // the ground hides the source's light from below
   return b;
 }
 

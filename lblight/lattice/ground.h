@@ -28,9 +28,10 @@ OmegaMatrix ground_omega(double albedo, const std::array<double, d3q19::kQ>& sha
 
 // Boundary values of a lattice standing on an open ground: the light a source sends down
 // (sum of its downward values, each crossing the ground plane once per step) comes back up from
-// the ground around the lattice, diffusely, with the albedo. Added to the upward values, so that
-// an empty lattice over the ground is uniform (the ground inside the lattice reflects exactly
-// what its boundary brings in). Linear in the source, so superposition of base solutions holds.
+// the ground around the lattice, diffusely, with the albedo. That reflection replaces the source's
+// own upward values (the ground hides whatever shines from below), so that an empty lattice over
+// the ground is uniform (the ground inside the lattice reflects exactly what its boundary brings
+// in). Linear in the source, so superposition of base solutions holds.
 std::array<double, d3q19::kQ> with_open_ground(const std::array<double, d3q19::kQ>& source, double albedo,
                                                const std::array<double, d3q19::kQ>& share);
 

@@ -12,6 +12,7 @@
 #include "lblight/compress/lbh_writer.h"
 #include "lblight/core/version.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/lattice/ground.h"
 
 namespace lblight {
 
@@ -96,14 +97,28 @@ void copy_up_to_ground(const Dims& d, std::vector<float>& v) {
     for (int x = 0; x < d.nx; ++x) v[d.index(x, y, 1)] = v[d.index(x, y, 2)];
 }
 
-std::string light_units(const ModelPlan& mp, int solution) {
+// The solution's value in open air (an empty lattice), per colour channel: its boundary's moving
+// values, over a ground with the open ground's reflection in place of the light from below.
+std::array<double, 3> open_air_value(const ModelPlan& mp, const SolutionPlan& s) {
+  std::array<double, 3> v{};
+  for (int c = 0; c < 3; ++c) {
+    const auto b = mp.ground.on ? with_open_ground(s.boundary, mp.ground.albedo[static_cast<std::size_t>(c)], mp.ground.share)
+                                : s.boundary;
+    for (int m = 1; m < 19; ++m) v[static_cast<std::size_t>(c)] += b[static_cast<std::size_t>(m)];
+  }
+  return v;
+}
+
+std::string light_units(const ModelPlan& mp, const SolutionPlan& s) {
   std::string u = "1 = the open-air light of a unit sun";
   if (mp.ground.on)
     u += "'s beam; the ground (albedo " + message_number(mp.ground.albedo[0]) + ", " + message_number(mp.ground.albedo[1]) +
          ", " + message_number(mp.ground.albedo[2]) +
-         ") adds albedo x the light sent down (a sun above the horizon: 1 + albedo in open air)";
-  if (solution == 0) return u + "; this ambient solution is 18 in open air" + (mp.ground.on ? " (+ 5 x albedo)" : "");
-  return u + (solution > 0 ? " (this solution in empty space)" : "");
+         ") hides the light from below and sends back albedo x the light sent down";
+  const auto v = open_air_value(mp, s);
+  std::string value = message_number(v[0]);
+  if (v[1] != v[0] || v[2] != v[0]) value += ", " + message_number(v[1]) + ", " + message_number(v[2]) + " (R, G, B)";
+  return u + "; this solution is " + value + " in open air";
 }
 
 nlohmann::json lattice_box_json(const ModelPlan& mp) {
@@ -181,7 +196,7 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   g.metadata["lblight_iterations"] = r.iterations;
   g.metadata["lblight_error_estimate"] = r.error_estimate;
   g.metadata["lblight_converged"] = r.converged;
-  g.metadata["lblight_units"] = light_units(mp, r.plan.index);
+  g.metadata["lblight_units"] = light_units(mp, r.plan);
   g.metadata["lblight_active"] = keep_.empty() ? "the whole lattice box, boundary source values included"
                                                : "occupied nodes and their 26 neighbours (0 elsewhere)";
   LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
@@ -368,8 +383,10 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   if (plan_.scene->ground.enabled)
     m["ground"] = {{"height", plan_.scene->ground.height},
                    {"albedo", plan_.scene->ground.albedo},
-                   {"units", "a ground of albedo A sends back A x the light sent down: a sun above the horizon is "
-                             "1 + A in open air, sky S is 9 S + 5 A S (docs/model.md sec. 4.3)"}};
+                   {"units", "a ground of albedo A hides the light from below and sends back A x the light sent "
+                             "down: a unit sun along a lattice direction from above is 1 + A in open air, one from "
+                             "below 0, sky S is 9 S + 5 A S; each grid's lblight_units gives its open-air value "
+                             "(docs/model.md sec. 4.3)"}};
   m["total_seconds"] = total_seconds;
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");
   dir_.commit();

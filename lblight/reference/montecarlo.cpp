@@ -82,18 +82,29 @@ Vec scatter_hg(const Vec& d, double g, double u1, double u2) {
 
 // Where photons start: faces of the interior box [0.5, n - 1.5] per axis (node i is the centre of
 // the unit voxel [i - 0.5, i + 0.5]), each with its share of the incident power. Over a ground the
-// box starts at the ground layer's top face, nothing enters through the ground, and the open ground
-// outside sends in its reflection of the downward light: radiance A E / pi, upward, through the sides.
+// box starts at the ground layer's top face, nothing enters through the ground, the source's light
+// from below is hidden by the ground (beams going up, the lower half of isotropic light), and the
+// open ground outside sends in its reflection of the downward light: radiance A E / pi, upward,
+// through the sides.
 struct EntryFace {
   int face = 0;  // 2 axis + (0: the low side, 1: the high side)
   const LightSource* source = nullptr;
   double power = 0;
   bool from_ground = false;  // the open ground's diffuse light (Lambertian, upward only)
+  bool from_above = false;   // isotropic light through a side over a ground: its downward half only
 };
 
 // Irradiance a source puts on a horizontal plane from above.
 double downward_irradiance(const LightSource& s) {
   return s.kind == LightSource::Kind::Collimated ? s.fluence * std::max(0.0, -s.direction[2]) : s.fluence / 4.0;
+}
+
+// Fluence of a source in open air over a ground: the ground hides a beam going up and the lower
+// half of isotropic light, and reflects 2 A E (radiance A E / pi over the upper hemisphere).
+double fluence_over_ground(const LightSource& s, double albedo) {
+  const double direct = s.kind == LightSource::Kind::Collimated ? (s.direction[2] > 0.0 ? 0.0 : s.fluence)
+                                                                 : s.fluence / 2.0;
+  return direct + 2.0 * albedo * downward_irradiance(s);
 }
 
 // A cosine-weighted direction about `axis`, pointing to its high side unless `low`.
@@ -119,10 +130,14 @@ class Sources {
       for (int axis = periodic_xy ? 2 : 0; axis < 3; ++axis) {
         const double area = ext_[(axis + 1) % 3] * ext_[(axis + 2) % 3];
         const bool bottom_closed = axis == 2 && ground_layer >= 0;
+        const bool ground = ground_layer >= 0;
         if (s.kind == LightSource::Kind::Collimated) {
           const double dn = s.direction[axis];
+          if (ground && s.direction[2] > 0.0) continue;  // a beam from below the horizon
           if (dn > 0.0 && !bottom_closed) add(2 * axis, &s, s.fluence * area * dn);
           if (dn < 0.0) add(2 * axis + 1, &s, s.fluence * area * -dn);
+        } else if (ground && axis < 2) {  // through a side: only the half that comes from above
+          for (int side = 0; side < 2; ++side) add(2 * axis + side, &s, s.fluence * area / 8.0, false, true);
         } else {  // radiance fluence / 4 pi: pi times that enters per unit area
           if (!bottom_closed) add(2 * axis, &s, s.fluence * area / 4.0);
           add(2 * axis + 1, &s, s.fluence * area / 4.0);
@@ -153,13 +168,14 @@ class Sources {
     // Lambertian into the box: cos(theta) = sqrt(u) about the inward normal.
     d = lambertian(rng, axis, high);
     if (f.from_ground) d[2] = std::abs(d[2]);  // the upward half, which the same law gives mirrored
+    if (f.from_above) d[2] = -std::abs(d[2]);
   }
 
  private:
-  void add(int face, const LightSource* s, double power, bool from_ground = false) {
+  void add(int face, const LightSource* s, double power, bool from_ground = false, bool from_above = false) {
     if (!(power > 0)) return;
     total_ += power;
-    faces_.push_back({face, s, power, from_ground});
+    faces_.push_back({face, s, power, from_ground, from_above});
     cumulative_.push_back(total_);
   }
   bool periodic_;
@@ -298,8 +314,8 @@ FluenceEstimate trace_fluence(const LatticeGeometry& lat, const ChannelOptics& o
       for (int y = 1; y + 1 < dims.ny; ++y)
         for (int x = 1; x + 1 < dims.nx; ++x) measured.push_back(dims.index(x, y, z));
 
-  double empty_fluence = 0;  // over a ground: the beam's and the open ground's 2 A E
-  for (const LightSource& s : light) empty_fluence += s.fluence + (ground_layer >= 0 ? 2.0 * albedo * downward_irradiance(s) : 0.0);
+  double empty_fluence = 0;
+  for (const LightSource& s : light) empty_fluence += ground_layer >= 0 ? fluence_over_ground(s, albedo) : s.fluence;
 
   FluenceEstimate est;
   est.power.incident = sources.power();
@@ -343,6 +359,13 @@ FluenceEstimate trace_fluence(const LatticeGeometry& lat, const ChannelOptics& o
         }
   };
 
+  if (!(sources.power() > 0)) {  // e.g. a sun below the horizon over a ground: no light, exactly
+    est.mean.assign(count, 0.0);
+    est.std_error.assign(count, 0.0);
+    est.relative_error = 0.0;
+    if (after_batch) after_batch(est);
+    return est;
+  }
   tbb::task_arena arena(ctx.threads > 0 ? ctx.threads : tbb::task_arena::automatic);
   const std::uint64_t per_batch = o.photons_per_batch;
   const double scale = sources.power() / static_cast<double>(per_batch) / kFixedScale;

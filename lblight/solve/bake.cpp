@@ -6,6 +6,7 @@
 #include <string>
 
 #include "lblight/core/error.h"
+#include "lblight/backend/node_rules.h"
 #include "lblight/core/system_info.h"
 #include "lblight/solve/dsa.h"
 #include "lblight/solve/krylov.h"
@@ -295,16 +296,16 @@ class AmbientSum {
     SolutionResult r;
     r.plan = *plan_;
     const Dims& d = mp_.lattice.dims;
-    double boundary_total = 0;
-    for (double b : plan_->boundary) boundary_total += b;
     double norm_sq = 0, max_value = 0;
     for (int c = 0; c < kChannels; ++c) {
+      // what B00 solved directly holds there (over a ground its open-ground light, per channel)
+      const double boundary = boundary_total(system_boundary(mp_, *plan_, mp_.channel_of[static_cast<std::size_t>(c)]));
       r.totals[c].resize(d.count());
       for (int z = 0; z < d.nz; ++z)
         for (int y = 0; y < d.ny; ++y)
           for (int x = 0; x < d.nx; ++x) {
             const std::size_t i = d.index(x, y, z);
-            const double v = d.is_boundary(x, y, z) ? boundary_total : sum_[c][i];
+            const double v = d.is_boundary(x, y, z) ? boundary : sum_[c][i];
             r.totals[c][i] = static_cast<float>(v);
             norm_sq += v * v;
             max_value = std::max(max_value, v);

@@ -92,6 +92,9 @@ std::array<double, 19> system_boundary(const ModelPlan& mp, const SolutionPlan& 
 
 namespace {
 
+// The most empty layers a model's lattice puts between its ground and its lowest medium layer.
+constexpr long long kMaxGroundGap = 65536;
+
 // Mean cosine of the discrete phase function seen from an axial direction.
 double mean_cosine(double g) {
   double s = 0;
@@ -171,7 +174,13 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
     mp.ground.albedo = scene.ground.albedo;
     mp.ground.share = ground_share(ambient_boundary(scene.solver.model));
     const long long lowest = mp.grid.index_min[2];
-    mp.ground.gap = ground_index ? static_cast<int>(std::max(0LL, lowest - 1 - *ground_index)) : 0;
+    const long long gap = ground_index ? std::max(0LL, lowest - 1 - *ground_index) : 0;
+    if (gap > kMaxGroundGap)  // before the int below, and before a lattice that tall is even sized
+      throw_invalid("model '" + spec.name + "' stands " + std::to_string(gap) + " voxels above the ground (at most " +
+                        std::to_string(kMaxGroundGap) +
+                        " empty layers between the ground and the medium): lower the model or the ground's height",
+                    {scene.file.string(), "/ground/height", {}});
+    mp.ground.gap = static_cast<int>(gap);
     if (ground_index && lowest - 1 < *ground_index)
       warnings.push_back("'" + spec.name + "': the medium reaches " + std::to_string(*ground_index + 1 - lowest) +
                          " layer(s) below the ground's height; its ground is placed under its lowest layer instead");
@@ -274,13 +283,14 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
                   {scene.file.string(), "/solver/method", {}});
   if (precision == Precision::Float16)
     for (const SolutionPlan& s : mp.solutions)
-      for (double v : s.boundary)
-        if (v > kFloat16MaxBoundary)
-          throw_invalid("float16 storage holds values up to 65504, and a boundary value of " + message_number(v) +
-                            " (intensity plus ambient) is above the " + message_number(kFloat16MaxBoundary) +
-                            " that leaves room for; light is linear in them: scale intensity and ambient down "
-                            "and the result up, or use float32",
-                        {scene.file.string(), "/lighting/intensity", {}});
+      for (std::size_t c = 0; c < mp.channels.size(); ++c)
+        for (double v : system_boundary(mp, s, static_cast<int>(c)))  // over a ground: with its reflection
+          if (v > kFloat16MaxBoundary)
+            throw_invalid("float16 storage holds values up to 65504, and a boundary value of " + message_number(v) +
+                              " (intensity plus ambient) is above the " + message_number(kFloat16MaxBoundary) +
+                              " that leaves room for; light is linear in them: scale intensity and ambient down "
+                              "and the result up, or use float32",
+                          {scene.file.string(), "/lighting/intensity", {}});
   st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
   if (st.method == SolverMethod::Dsa && st.tolerance < kDsaMinTolerance)
     throw_invalid("solver method dsa reaches about " + message_number(kDsaMinTolerance) +
