@@ -35,5 +35,7 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global);
 Command add_sun_weights_command(CLI::App& app, const GlobalOptions& global);
 Command add_schema_command(CLI::App& app, const GlobalOptions& global);
 Command add_simulate_command(CLI::App& app, const GlobalOptions& global);
+Command add_merge_command(CLI::App& app, const GlobalOptions& global);
+
 
 }  // namespace lblight::cli

@@ -1,15 +1,16 @@
 #include "lblight/pipeline/bake_output.h"
 
 #include "lblight/pipeline/relight.h"
+#include "lblight/pipeline/work_units.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <ctime>
 
 #include <spdlog/spdlog.h>
 
 #include "lblight/compress/lbh_writer.h"
+#include "lblight/core/system_info.h"
 #include "lblight/core/version.h"
 #include "lblight/io/vdb_io.h"
 
@@ -17,15 +18,6 @@ namespace lblight {
 
 namespace {
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-
-std::string utc_now() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 }  // namespace
 
 nlohmann::json material_json(const Material& m) {
@@ -327,7 +319,7 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   nlohmann::json m;
   m["lblight_version"] = kVersion;
   m["manifest_format"] = kManifestFormat;
-  m["created"] = utc_now();
+  m["created"] = utc_timestamp();
   m["command"] = info_.command_line;
   m["scene"] = {{"file", plan_.scene->file.string()}, {"name", plan_.scene->name}, {"hash", plan_.scene->hash}};
   m["lighting"] = plan_.scene->lighting.mode == LightingMode::Base ? "base" : "static";
@@ -340,6 +332,10 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
                "in open air";
   if (plan_.forest) m["forest"] = forest_json(*plan_.forest);
   m["total_seconds"] = total_seconds;
+  if (!info_.unit.is_null()) {
+    m["unit"] = info_.unit;
+    m["unit"]["files"] = file_checksums(dir_.staging(), m);
+  }
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");
   dir_.commit();
   return m;

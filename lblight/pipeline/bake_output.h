@@ -28,6 +28,9 @@ struct BakeRunInfo {
   // A Monte Carlo reference (lblight truth): its settings, recorded as the manifest's
   // "reference"; each solution then also gets a grid <name>_se with its standard error.
   nlohmann::json reference;
+  // A work unit's partial output (docs/scale-out.md): its name, inputs hash and the scene's units,
+  // recorded as the manifest's "unit" with the checksums of the files written.
+  nlohmann::json unit;
 };
 
 class BakeOutput {

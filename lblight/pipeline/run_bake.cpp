@@ -40,7 +40,7 @@ class WriteEachSolution final : public BakeObserver {
 
 nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std::filesystem::path& target,
                         const std::string& command_line, BakeObserver& observer, const RunContext& ctx,
-                        double seconds_before) {
+                        double seconds_before, const nlohmann::json& unit) {
   const auto t0 = std::chrono::steady_clock::now();
   // Every model must fit before the first one solves: a bake that fails at its second model has
   // spent the first one's time for nothing.
@@ -49,7 +49,7 @@ nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std:
     if (!cost.fits) throw Error(ErrorCategory::Unavailable, cost.why_not);
   }
   // On a GPU the host waits on the device: convert and write each solution while the next solves.
-  BakeOutput output(plan, target, {command_line, backend.name(), backend.description(), {}},
+  BakeOutput output(plan, target, {command_line, backend.name(), backend.description(), {}, unit},
                     /*write_in_background=*/!backend.occupies_host_cores());
   WriteEachSolution writer(output, observer);
   for (const ModelPlan& mp : plan.models) {
