@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lblight/pipeline/slurm.h"
 #include "lblight/pipeline/work_units.h"
 #include "tests/support/test_support.h"
 
@@ -195,4 +196,15 @@ TEST_CASE("the run record: fields two runs of one bake may differ in", "[units]"
                                                             {"residual_history", {{13, nullptr, 1.0}}},
                                                             {"compression", {{"ratio", 3.0}}}}}}}}}};
   CHECK(without_run_record(m) == kept);
+}
+
+TEST_CASE("Slurm values: time limits, memory and array ranges", "[units]") {
+  CHECK(slurm_time(59) == "0-00:01:00");
+  CHECK(slurm_time(3601) == "0-01:01:00");
+  CHECK(slurm_time(2 * 86400 + 60) == "2-00:01:00");
+  CHECK(slurm_mem(1048576.0 * 1.5) == "2M");
+  CHECK(task_time_limit(0) == 600);
+  CHECK(task_time_limit(1000) == 2120);
+  CHECK(array_ranges({0, 1, 2, 5, 7, 8}) == "0-2,5,7-8");
+  CHECK(array_ranges({3}) == "3");
 }
