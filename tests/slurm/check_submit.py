@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """`lblight submit` on a real one-node Slurm (scripts/local-slurm.sh, docs/scale-out.md): the default
-scene baked as a job array plus a merge equals a one-machine bake bit for bit; a unit made to fail
+scene and the forest example (models and coarse forest lattices) baked as a job array plus a merge
+equal a one-machine bake bit for bit; a unit made to fail
 cancels the merge (it does not hang) and shows as failed in `lblight status`; `submit --resume` reruns
 only that unit (its log says it baked, no other unit ran) and the result is still identical; the
 merge refuses a partial of another scene. Skipped (exit 77, saying why) where Slurm cannot be
@@ -80,9 +81,11 @@ def status():
 
 
 def main():
+    cluster = work / "cluster"
+    # daemons a killed earlier run left behind would hold the ports: stopped by their pid files
+    subprocess.run([source / "scripts" / "local-slurm.sh", "stop", cluster], capture_output=True)
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
-    cluster = work / "cluster"
     r = subprocess.run([source / "scripts" / "local-slurm.sh", "start", cluster], capture_output=True, text=True)
     if r.returncode != 0:
         print("SKIPPED: no local Slurm cluster here: " + (r.stderr.strip() or f"exit code {r.returncode}"))
@@ -150,6 +153,19 @@ def checks():
     # A unit task run again with --resume finds its partial and does not recompute it.
     again = run(lblight, "bake", scene, *solutions, "--only", "tree", "--resume", "-o", work / "sub" / "parts" / "tree")
     check("not recomputed" in again.stderr, "bake --only --resume leaves a finished unit alone")
+
+    # The forest example: its models and coarse forest lattices as units (one solution keeps it short).
+    forest, forest_args = source / "configs" / "forest.json", ["--solutions", "6"]
+    run(lblight, "-q", "bake", forest, *forest_args, "--threads", "1", "-o", work / "forest-single")
+    t0 = time.monotonic()
+    r = run(lblight, "submit", forest, *forest_args, "--slurm", "--cpus-per-task", "1", "-o", work / "forest-sub")
+    array, merge = r.stdout.strip().splitlines()[-1].split()[1:3]
+    states = wait({array, merge}, 6)
+    check(all(s == "COMPLETED" for s in states.values()), f"forest: 5 units and the merge completed: {states}")
+    print(f"forest submission: {time.monotonic() - t0:.1f} s", flush=True)
+    same = run(lblight, "compare", "--exact", work / "forest-single", work / "forest-sub" / "bake", expect=None)
+    print(same.stdout, end="")
+    check(same.returncode == 0, "the forest's merged bake equals its one-machine bake bit for bit")
 
     # A partial of another scene is refused by name, and nothing is written.
     run(lblight, "-q", "bake", other_scene, "--only", "tree", "-o", work / "foreign")
