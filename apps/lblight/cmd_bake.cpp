@@ -97,10 +97,9 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// --resume: whether `dir` holds the finished partial of the plan's model `index`; logs either way.
-bool unit_done(const BakePlan& plan, std::size_t index, const Backend& backend, const std::filesystem::path& dir) {
-  const std::string name = plan.models[index].spec->name;
-  const std::string hash = unit_hash(plan, plan.models[index], backend.name());
+// --resume: whether `dir` holds the finished partial of `unit` (unit_record); logs either way.
+bool unit_done(const nlohmann::json& unit, const std::filesystem::path& dir) {
+  const std::string name = unit["name"], hash = unit["hash"];
   const PartCheck c = check_part(dir, name, hash, /*verify_checksums=*/true);
   if (c.state == PartState::Done) {
     spdlog::info("unit '{}': finished in {} (inputs hash {}), not recomputed", name, dir.string(), hash);
@@ -116,7 +115,8 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   const auto t0 = std::chrono::steady_clock::now();
   const Scene scene = load_scene(args.solve.scene);
   PlanOverrides ov = args.solve.overrides();
-  if (!args.only.empty()) ov.only = args.only;
+  const UnitSpec only = args.only.empty() ? UnitSpec{} : parse_unit(args.only);
+  if (!only.name.empty()) ov.only = only.name;
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-bake")
                           : std::filesystem::path(args.output));
@@ -144,13 +144,13 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   ProgressLog log(total);
   const RunContext ctx = args.solve.run_context();
 
-  if (!args.only.empty()) {  // one unit: its partial output
-    if (args.resume && unit_done(plan, 0, *backend, target)) {
+  if (!only.name.empty()) {  // one unit (or some of its solutions): its partial output
+    const nlohmann::json unit = unit_record(plan, plan.models[0], backend->name(), ov, only.solutions);
+    if (args.resume && unit_done(unit, target)) {
       std::cout << "unit '" << args.only << "' already done in " << target.string() << ": not recomputed\n";
       return 0;
     }
-    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0),
-             unit_record(plan, plan.models[0], backend->name()));
+    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0), unit);
   } else if (args.resume) {
     // Every unit into <target>.parts (kept until the merge), so that a bake killed mid-way
     // resumes at the first unfinished unit; then the parts merge into target.
@@ -161,8 +161,8 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
     unit_plans.reserve(plan.models.size());
     for (std::size_t i = 0; i < plan.models.size(); ++i) {
       parts.push_back(parts_dir / plan.models[i].spec->name);
-      if (unit_done(plan, i, *backend, parts.back())) continue;
       const nlohmann::json unit = unit_record(plan, plan.models[i], backend->name());
+      if (unit_done(unit, parts.back())) continue;
       unit_plans.push_back(unit_plan(plan, i));
       run_bake(unit_plans.back(), *backend, parts.back(), global.command_line, log, ctx, seconds_since(t0), unit);
     }
@@ -197,9 +197,10 @@ Command add_bake_command(CLI::App& app, const GlobalOptions& global) {
                                                 "a previous lblight output")
       ->check(kNonEmpty);
   cmd->add_option("--only", args->only,
-                  "Bake one work unit: a model of the scene, or a coarse forest lattice (forest, "
-                  "forest.alone.<model>); -o then receives its partial output, which `lblight merge` combines "
-                  "with the others' (docs/scale-out.md)")
+                  "Bake one work unit, MODEL[:SOLUTIONS]: a model of the scene or a coarse forest lattice (forest, "
+                  "forest.alone.<model>), optionally only some of its solutions (whole batches, e.g. tree:1-6); -o "
+                  "then receives its partial output, which `lblight merge` combines with the others' "
+                  "(docs/scale-out.md)")
       ->check(kNonEmpty);
   cmd->add_flag("--resume", args->resume,
                 "Do not recompute finished units: with --only, exit at once when -o holds this unit's finished "

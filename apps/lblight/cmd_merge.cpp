@@ -36,7 +36,8 @@ int run_merge(const MergeArgs& a, const GlobalOptions& global) {
   const fs::path target = output_folder_path(a.output);
   std::vector<fs::path> parts(a.parts.begin(), a.parts.end());
   const nlohmann::json m = merge_parts(parts, target, options, ctx);
-  std::cout << "merged " << parts.size() << " unit(s) of scene '" << m["scene"].value("name", "")
+  std::cout << "merged " << parts.size() << " part(s), " << m["models"].size() << " unit(s) of scene '"
+            << m["scene"].value("name", "")
             << "' into " << target.string() << "\n";
   return 0;
 }
@@ -51,8 +52,13 @@ Command add_merge_command(CLI::App& app, const GlobalOptions& global) {
       "exactly what one `lblight bake` writes (the same files; the manifest equal except its run record: created, "
       "command, timings). A part that is damaged (a file changed or cut short), of another scene or lblight "
       "version, or a unit missing or given twice stops the merge (exit 2) naming the part; OUTDIR then stays "
-      "untouched.");
-  cmd->add_option("parts", args->parts, "Partial output folders, one per unit")->required()->check(kNonEmpty);
+      "untouched. A unit baked in shares of its solutions is assembled from their totals through the bake's own "
+      "output (B00 summed as a bake sums it); that needs the scene (--scene, else the path the parts record).");
+  cmd->add_option("parts", args->parts,
+                  "Partial output folders: one per unit, or for a unit baked in shares (--only MODEL:SOLUTIONS) "
+                  "one per share")
+      ->required()
+      ->check(kNonEmpty);
   cmd->add_option("-o,--output", args->output, "Output directory; replaced if it holds a previous lblight output")
       ->required()
       ->check(kNonEmpty);

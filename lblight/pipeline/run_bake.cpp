@@ -52,8 +52,10 @@ nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std:
   BakeOutput output(plan, target, {command_line, backend.name(), backend.description(), {}, unit},
                     /*write_in_background=*/!backend.occupies_host_cores());
   WriteEachSolution writer(output, observer);
+  BakeOptions options;  // a unit of some of the model's solutions bakes only those
+  if (unit.is_object() && unit.contains("solutions")) options.solutions = unit["solutions"].get<std::vector<int>>();
   for (const ModelPlan& mp : plan.models) {
-    bake_model(mp, backend, {}, writer, ctx);
+    bake_model(mp, backend, options, writer, ctx);
     output.finish_model(mp);
   }
   ctx.check_cancelled();  // a signal during the last model's output: nothing goes into place

@@ -4,6 +4,9 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <iterator>
+#include <limits>
+#include <optional>
 #include <map>
 #include <set>
 
@@ -16,6 +19,7 @@
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/pipeline/manifest.h"
+#include "lblight/solve/bake.h"
 
 namespace fs = std::filesystem;
 
@@ -54,18 +58,33 @@ std::string hash_and_copy(const fs::path& from, const fs::path& to) {
   return checksum_text(h);
 }
 
-// The files a manifest's models name ("file", "lbh_file"), each once.
+// The files a manifest names (its models' "file" and "lbh_file", a unit's "totals"), each once.
 std::vector<std::pair<std::string, std::string>> named_files(const nlohmann::json& manifest) {
   std::vector<std::pair<std::string, std::string>> files;  // name, JSON pointer
   std::set<std::string> seen;
+  const auto add = [&](const nlohmann::json& f, const std::string& pointer) {
+    if (f.is_string() && seen.insert(f.get<std::string>()).second) files.push_back({f.get<std::string>(), pointer});
+  };
   const nlohmann::json& models = manifest.at("models");
   for (std::size_t i = 0; i < models.size(); ++i)
-    for (const char* key : {"file", "lbh_file"}) {
-      const nlohmann::json& f = models[i].contains(key) ? models[i][key] : nlohmann::json();
-      if (f.is_string() && seen.insert(f.get<std::string>()).second)
-        files.push_back({f.get<std::string>(), "/models/" + std::to_string(i) + "/" + key});
-    }
+    for (const char* key : {"file", "lbh_file"})
+      if (models[i].contains(key)) add(models[i][key], "/models/" + std::to_string(i) + "/" + key);
+  const nlohmann::json totals = manifest.value("unit", nlohmann::json::object()).value("totals", nlohmann::json());
+  if (totals.is_object())
+    for (const auto& [grid, f] : totals.items()) add(f, "/unit/totals/" + grid);
   return files;
+}
+
+// PlanOverrides as a unit records them (a merge plans a model baked in parts again with them).
+nlohmann::json plan_overrides_json(const PlanOverrides& ov) {
+  nlohmann::json j = nlohmann::json::object();
+  if (ov.solutions) j["solutions"] = *ov.solutions;
+  if (ov.mode) j["mode"] = static_cast<int>(*ov.mode);
+  j["iterations"] = ov.iterations;
+  if (ov.tolerance) j["tolerance"] = *ov.tolerance;
+  if (ov.precision) j["precision"] = static_cast<int>(*ov.precision);
+  if (ov.method) j["method"] = static_cast<int>(*ov.method);
+  return j;
 }
 
 // The fields by which parts of one bake agree (besides the units list): what a one-machine bake
@@ -108,6 +127,25 @@ void drop(nlohmann::json& at, const std::vector<std::string>& parts, std::size_t
 
 }  // namespace
 
+PlanOverrides plan_overrides_from_json(const nlohmann::json& j) {
+  PlanOverrides ov;
+  if (j.contains("solutions")) ov.solutions = j["solutions"].get<std::vector<int>>();
+  if (j.contains("mode")) ov.mode = static_cast<IterationMode>(j["mode"].get<int>());
+  ov.iterations = j.value("iterations", 0);
+  if (j.contains("tolerance")) ov.tolerance = j["tolerance"].get<double>();
+  if (j.contains("precision")) ov.precision = static_cast<Precision>(j["precision"].get<int>());
+  if (j.contains("method")) ov.method = static_cast<SolverMethod>(j["method"].get<int>());
+  return ov;
+}
+
+UnitSpec parse_unit(const std::string& text) {
+  const std::size_t colon = text.find(':');
+  UnitSpec u{text.substr(0, colon), {}};
+  if (u.name.empty()) throw_invalid("'" + text + "' names no unit; allowed: MODEL or MODEL:SOLUTIONS", {"--only", {}, {}});
+  if (colon != std::string::npos) u.solutions = parse_solution_list(text.substr(colon + 1), {"--only", {}, {}});
+  return u;
+}
+
 std::string unit_hash(const BakePlan& plan, const ModelPlan& mp, const std::string& backend_name) {
   nlohmann::json in;
   in["lblight"] = kVersion;
@@ -131,8 +169,21 @@ std::string unit_hash(const BakePlan& plan, const ModelPlan& mp, const std::stri
   return checksum_text(h);
 }
 
-nlohmann::json unit_record(const BakePlan& plan, const ModelPlan& mp, const std::string& backend_name) {
-  return {{"name", mp.spec->name}, {"hash", unit_hash(plan, mp, backend_name)}, {"units", lattice_names(*plan.scene)}};
+nlohmann::json unit_record(const BakePlan& plan, const ModelPlan& mp, const std::string& backend_name,
+                           const PlanOverrides& overrides, const std::vector<int>& solutions) {
+  nlohmann::json u = {{"name", mp.spec->name}, {"hash", unit_hash(plan, mp, backend_name)},
+                      {"units", lattice_names(*plan.scene)}};
+  if (solutions.empty()) return u;
+  // A share of the model: its own hash covers which solutions it holds.
+  std::vector<int> solved;
+  for (const SolutionPlan& s : mp.solutions)
+    if (!s.derived) solved.push_back(s.index);
+  u["model_hash"] = u["hash"];
+  u["model_solutions"] = solved;
+  u["solutions"] = solutions;
+  u["plan_overrides"] = plan_overrides_json(overrides);
+  u["hash"] = checksum_text(fnv1a64(nlohmann::json(solutions).dump(), fnv1a64(u["model_hash"].get<std::string>())));
+  return u;
 }
 
 BakePlan unit_plan(BakePlan& full, std::size_t index) {
@@ -228,70 +279,234 @@ PartCheck check_part(const fs::path& dir, const std::string& name, const std::st
   return c;
 }
 
+namespace {
+
+struct Part {
+  fs::path dir;
+  nlohmann::json manifest;
+  bool owned = false;  // assembled by this merge: its files are moved, and its folder removed
+  const nlohmann::json& unit() const { return manifest["unit"]; }
+  bool split() const { return unit().contains("solutions"); }
+};
+
+[[noreturn]] void refuse(const fs::path& dir, const std::string& why, const std::string& pointer = {}) {
+  throw_invalid("refused part " + dir.string() + ": " + why + "; nothing was merged",
+                {(dir / "manifest.json").string(), pointer, {}});
+}
+
+double number_or_inf(const nlohmann::json& v) {
+  return v.is_number() ? v.get<double>() : std::numeric_limits<double>::infinity();
+}
+
+// A solution as a bake handed it to its output: the manifest row (which keeps every number it
+// was written from; null for what was not finite) and its totals.
+SolutionResult solution_from_row(const nlohmann::json& row, const SolutionPlan& plan) {
+  SolutionResult r;
+  r.plan = plan;
+  r.iterations = row.at("iterations");
+  r.seconds = row.at("seconds");
+  r.error_estimate = number_or_inf(row.at("error_estimate"));
+  r.error_estimate_max = number_or_inf(row.at("error_estimate_max"));
+  r.converged = row.at("converged");
+  if (row.contains("krylov")) {
+    r.krylov_iterations = row["krylov"].at("iterations");
+    r.krylov_residual = number_or_inf(row["krylov"].at("relative_residual"));
+  }
+  if (row.contains("photons")) r.photons = row["photons"];
+  for (const nlohmann::json& h : row.at("residual_history")) {
+    CheckPoint c;
+    c.step = h.at(0);
+    c.seconds = number_or_inf(h.at(1));
+    c.change_l2 = number_or_inf(h.at(2));
+    c.error_estimate = number_or_inf(h.at(3));
+    c.error_estimate_max = number_or_inf(h.at(4));
+    r.history.push_back(c);
+  }
+  return r;
+}
+
+// The scene the parts were baked from, under the path they record (their manifests must agree
+// with a one-machine bake's); --scene where that path does not load from here.
+Scene scene_of(const Part& part, const MergeOptions& opt) {
+  const std::string recorded = part.manifest["scene"].value("file", "");
+  const std::string hash = part.manifest["scene"].value("hash", "");
+  std::error_code ec;
+  Scene scene = load_scene(fs::exists(recorded, ec) || opt.scene_file.empty() ? recorded : opt.scene_file);
+  scene.file = recorded;
+  if (scene.hash != hash)
+    refuse(part.dir, "its scene " + recorded + " now has the hash " + scene.hash + ", not the " + hash +
+                         " it was baked with: the model cannot be assembled from it",
+           "/scene/hash");
+  return scene;
+}
+
+// A unit baked in parts (bake --only MODEL:SOLUTIONS) as one whole-model partial in `dir`: the
+// model planned again, then every solution in bake order through the bake's own output.
+Part assemble(const std::vector<Part>& parts, const fs::path& dir, const MergeOptions& opt, const RunContext& ctx) {
+  const Part& first = parts.front();
+  const nlohmann::json& u = first.unit();
+  const std::string name = u["name"];
+  const Scene scene = scene_of(first, opt);
+  PlanOverrides ov = plan_overrides_from_json(u.at("plan_overrides"));
+  ov.only = name;
+  const BakePlan plan = make_plan(scene, ov, ctx);
+  const ModelPlan& mp = plan.models.at(0);
+  const std::string backend = first.manifest["backend"].value("name", "");
+  const std::string hash = unit_hash(plan, mp, backend);
+  if (hash != u.at("model_hash"))
+    refuse(first.dir, "model '" + name + "' planned again has the inputs hash " + hash + ", not the parts' " +
+                          u["model_hash"].get<std::string>() + " (its density source changed since?)",
+           "/unit/model_hash");
+
+  class Forward final : public BakeObserver {
+   public:
+    explicit Forward(BakeOutput& out) : out_(out) {}
+    void solution_done(const ModelPlan& model, SolutionResult& r) override { out_.add(model, r); }
+
+   private:
+    BakeOutput& out_;
+  };
+  BakeOutput out(plan, dir,
+                 {opt.command_line, backend, first.manifest["backend"].value("description", ""), nullptr,
+                  unit_record(plan, mp, backend)});
+  Forward forward(out);
+  AmbientSum ambient(mp);
+  double total_seconds = 0, peak = 0;
+  for (const Part& p : parts) {
+    total_seconds += p.manifest.value("total_seconds", 0.0);
+    peak = std::max(peak, p.manifest["models"][0].value("peak_memory_bytes", 0.0));
+  }
+  out.set_peak_bytes(mp, static_cast<std::size_t>(peak));
+  for (const SolutionPlan& sp : mp.solutions) {  // bake order: index order, a summed B00 last
+    if (sp.derived) continue;
+    ctx.check_cancelled();
+    const auto has = [&](const Part& p) {
+      const nlohmann::json& s = p.unit()["solutions"];
+      return std::find(s.begin(), s.end(), sp.index) != s.end();
+    };
+    const Part& p = *std::find_if(parts.begin(), parts.end(), has);  // coverage checked by the caller
+    try {
+      const nlohmann::json& rows = p.manifest["models"][0]["solutions"];
+      const auto row = std::find_if(rows.begin(), rows.end(), [&](const nlohmann::json& r) { return r.at("index") == sp.index; });
+      if (row == rows.end()) refuse(p.dir, "its manifest has no row for " + sp.grid_name, "/models/0/solutions");
+      SolutionResult r = solution_from_row(*row, sp);
+      const std::string file = p.unit().at("totals").at(sp.grid_name);
+      const fs::path path = manifest_file(p.dir, file, "/unit/totals/" + sp.grid_name);
+      if (file_checksum(path) != p.unit()["files"].at(file).at("checksum"))
+        refuse(p.dir, file + " does not match its checksum (changed or damaged after the bake)");
+      r.totals = read_raw_totals(path, mp.lattice.dims.count());
+      ambient.add(r);
+      out.add(mp, r);
+    } catch (const nlohmann::json::exception& e) {
+      refuse(p.dir, std::string("damaged: its manifest lacks what a bake writes: ") + e.what());
+    }
+  }
+  ambient.finish(forward);
+  out.finish_model(mp);
+  spdlog::info("unit '{}': assembled from {} part(s) into its whole-model output", name, parts.size());
+  return {dir, out.commit(total_seconds), true};
+}
+
+std::set<int> solution_set(const Part& p) { return p.unit()["solutions"].get<std::set<int>>(); }
+
+// Removes the folder of assembled units however the merge ends.
+struct RemoveOnExit {
+  fs::path dir;
+  ~RemoveOnExit() {
+    std::error_code ec;
+    if (!dir.empty()) fs::remove_all(dir, ec);
+  }
+};
+
+}  // namespace
+
 nlohmann::json merge_parts(const std::vector<fs::path>& parts, const fs::path& target, const MergeOptions& opt,
                            const RunContext& ctx) {
   if (parts.empty()) throw_invalid("no partial outputs to merge; give one folder per unit (lblight bake --only)");
   StagedDirectory::check_target(target, OutputKind::Bake);
-  struct Part {
-    fs::path dir;
-    nlohmann::json manifest;
-  };
-  std::map<std::string, Part> by_unit;
+  std::map<std::string, std::vector<Part>> by_unit;
   std::vector<std::string> units = opt.units;
   std::string reference_hash = opt.scene_hash, reference_words;
   if (!opt.scene_hash.empty())
     reference_words = "scene '" + opt.scene_name + "' (" + opt.scene_file + ", " + opt.scene_hash + ") given by --scene";
-  const Part* first = nullptr;
+  std::optional<Part> first;
   for (const fs::path& dir : parts) {
     ctx.check_cancelled();
-    const Location where{(dir / "manifest.json").string(), {}, {}};
-    const auto refuse = [&](const std::string& why, const std::string& pointer = {}) {
-      throw_invalid("refused part " + dir.string() + ": " + why + "; nothing was merged",
-                    {where.file, pointer, {}});
-    };
     // Which unit it claims to be, then everything checked against it (sizes here, checksums
     // while copying below).
     const PartCheck c = check_part(dir, "", "", false);
-    if (c.state == PartState::Absent) refuse("no partial output there (missing or empty folder)");
-    if (c.state != PartState::Done) refuse(c.why);
-    const nlohmann::json& m = c.manifest;
-    const std::string name = m["unit"]["name"];
+    if (c.state == PartState::Absent) refuse(dir, "no partial output there (missing or empty folder)");
+    if (c.state != PartState::Done) refuse(dir, c.why);
+    const Part part{dir, c.manifest};
+    const nlohmann::json& m = part.manifest;
+    const std::string name = part.unit()["name"];
     const std::string hash = m.at("scene").value("hash", "");
     if (reference_hash.empty()) {
       reference_hash = hash;
       reference_words = scene_words(m) + " of part " + dir.string();
     }
     if (hash != reference_hash)
-      refuse("it is a bake of " + scene_words(m) + ", not of " + reference_words + " (a foreign partial)",
+      refuse(dir, "it is a bake of " + scene_words(m) + ", not of " + reference_words + " (a foreign partial)",
              "/scene/hash");
-    if (units.empty()) units = m["unit"]["units"].get<std::vector<std::string>>();
-    if (m["unit"]["units"] != nlohmann::json(units))
-      refuse("its scene has the units " + m["unit"]["units"].dump() + ", not " + nlohmann::json(units).dump(),
+    if (units.empty()) units = part.unit()["units"].get<std::vector<std::string>>();
+    if (part.unit()["units"] != nlohmann::json(units))
+      refuse(dir, "its scene has the units " + part.unit()["units"].dump() + ", not " + nlohmann::json(units).dump(),
              "/unit/units");
     if (std::find(units.begin(), units.end(), name) == units.end())
-      refuse("unit '" + name + "' is not a unit of the scene (" + join(units) + ")", "/unit/name");
-    if (by_unit.count(name))
-      refuse("unit '" + name + "' is also given as " + by_unit[name].dir.string() + "; give each unit once",
-             "/unit/name");
+      refuse(dir, "unit '" + name + "' is not a unit of the scene (" + join(units) + ")", "/unit/name");
     if (first)
       for (const std::string& field : kSharedFields) {
         const nlohmann::json::json_pointer p(field);
         const nlohmann::json a = first->manifest.contains(p) ? first->manifest[p] : nlohmann::json();
         const nlohmann::json b = m.contains(p) ? m[p] : nlohmann::json();
         if (a != b)
-          refuse("its " + field + " is " + b.dump() + " but " + a.dump() + " in part " + first->dir.string() +
-                     " (parts must come from the same lblight, backend and settings)",
+          refuse(dir, "its " + field + " is " + b.dump() + " but " + a.dump() + " in part " + first->dir.string() +
+                          " (parts must come from the same lblight, backend and settings)",
                  field);
       }
-    by_unit[name] = {dir, m};
-    if (!first) first = &by_unit[name];
+    // A unit again: only as another share of a unit baked in parts, of the same plan.
+    for (const Part& other : by_unit[name]) {
+      if (!part.split() || !other.split())
+        refuse(dir, "unit '" + name + "' is also given as " + other.dir.string() + "; give each unit once",
+               "/unit/name");
+      for (const char* key : {"model_hash", "model_solutions", "plan_overrides"})
+        if (part.unit().value(key, nlohmann::json()) != other.unit().value(key, nlohmann::json()))
+          refuse(dir, "its unit." + std::string(key) + " differs from part " + other.dir.string() +
+                          "'s (shares of one unit must come from one plan)",
+                 "/unit/" + std::string(key));
+      std::vector<int> both;
+      const std::set<int> a = solution_set(part), b = solution_set(other);
+      std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
+      if (!both.empty())
+        refuse(dir, "its solutions " + nlohmann::json(both).dump() + " of unit '" + name + "' are also in part " +
+                        other.dir.string() + "; give each solution once",
+               "/unit/solutions");
+    }
+    by_unit[name].push_back(part);
+    if (!first) first = part;
   }
   std::vector<std::string> missing;
   for (const std::string& u : units)
-    if (!by_unit.count(u)) missing.push_back(u);
+    if (by_unit[u].empty()) missing.push_back(u);
   if (!missing.empty())
     throw_invalid("missing unit(s) " + join(missing) + " of " + reference_words + ": a merge needs every unit (" +
                       join(units) + "); bake them with lblight bake --only UNIT, or lblight submit --resume");
+
+  // Units baked in parts: every solution there, then assembled into one whole-model partial each.
+  RemoveOnExit assembled{target.string() + ".assembling"};
+  for (const std::string& u : units) {
+    std::vector<Part>& shares = by_unit[u];
+    if (!shares.front().split()) continue;
+    std::set<int> have, want = shares.front().unit().at("model_solutions").get<std::set<int>>();
+    for (const Part& p : shares)
+      for (int i : solution_set(p)) have.insert(i);
+    std::vector<int> lacking;
+    std::set_difference(want.begin(), want.end(), have.begin(), have.end(), std::back_inserter(lacking));
+    if (!lacking.empty())
+      throw_invalid("unit '" + u + "' was baked in parts, and no part holds its solution(s) " +
+                    nlohmann::json(lacking).dump() + "; bake them with lblight bake --only " + u + ":<solutions>");
+    shares = {assemble(shares, assembled.dir / u, opt, ctx)};
+  }
 
   StagedDirectory dir(target, OutputKind::Bake);
   nlohmann::json merged = first->manifest;
@@ -301,14 +516,14 @@ nlohmann::json merge_parts(const std::vector<fs::path>& parts, const fs::path& t
   double total_seconds = 0;
   std::vector<std::string> descriptions;
   for (const std::string& u : units) {
-    const Part& p = by_unit[u];
+    const Part& p = by_unit[u].front();
     const nlohmann::json& m = p.manifest;
     for (const auto& [file, pointer] : named_files(m)) {
       ctx.check_cancelled();
       const fs::path from = p.dir / file;
-      const std::string expected = m["unit"]["files"][file]["checksum"];
+      const std::string expected = p.unit()["files"][file]["checksum"];
       std::string got;
-      if (opt.move_files) {
+      if (opt.move_files || p.owned) {
         got = file_checksum(from);
         if (got == expected) {
           std::error_code ec;
@@ -319,9 +534,8 @@ nlohmann::json merge_parts(const std::vector<fs::path>& parts, const fs::path& t
         got = hash_and_copy(from, dir.path(file));
       }
       if (got != expected)
-        throw_invalid("refused part " + p.dir.string() + ": " + file + " does not match its checksum (" + got + ", " +
-                          expected + " written): changed or damaged after the bake; nothing was merged",
-                      {from.string(), {}, {}});
+        refuse(p.dir, file + " does not match its checksum (" + got + ", " + expected +
+                          " written): changed or damaged after the bake");
     }
     merged["models"].push_back(m["models"][0]);
     total_seconds += m.value("total_seconds", 0.0);
@@ -329,9 +543,7 @@ nlohmann::json merge_parts(const std::vector<fs::path>& parts, const fs::path& t
     if (std::find(descriptions.begin(), descriptions.end(), d) == descriptions.end()) descriptions.push_back(d);
     if (m.contains("forest")) {
       if (merged.contains("forest") && merged["forest"] != m["forest"])
-        throw_invalid("refused part " + p.dir.string() + ": its forest (instances, cell size) differs from the other "
-                      "parts'; nothing was merged",
-                      {(p.dir / "manifest.json").string(), "/forest", {}});
+        refuse(p.dir, "its forest (instances, cell size) differs from the other parts'", "/forest");
       merged["forest"] = m["forest"];
     }
     spdlog::info("unit '{}': {} file(s) from {}", u, named_files(m).size(), p.dir.string());

@@ -25,12 +25,26 @@ namespace lblight {
 // output would be the same.
 std::string unit_hash(const BakePlan& plan, const ModelPlan& model, const std::string& backend_name);
 
-// The "unit" object of a partial output's manifest, without "files" (BakeOutput adds them).
-nlohmann::json unit_record(const BakePlan& plan, const ModelPlan& model, const std::string& backend_name);
+// What `bake --only` names: a lattice, and optionally some of its solutions ("tree:1-6", indices
+// as --solutions takes them). Error(InvalidInput) naming --only otherwise.
+struct UnitSpec {
+  std::string name;
+  std::vector<int> solutions;  // empty: the whole lattice
+};
+UnitSpec parse_unit(const std::string& text);
+
+// The "unit" object of a partial output's manifest, without "files" (BakeOutput adds them). A unit
+// of some solutions also records them, the whole model's hash and solved solutions, and the plan
+// overrides (`overrides`) a merge needs to plan the model again when it assembles it.
+nlohmann::json unit_record(const BakePlan& plan, const ModelPlan& model, const std::string& backend_name,
+                           const PlanOverrides& overrides = {}, const std::vector<int>& solutions = {});
 
 // A plan of the one lattice `index` of `full` (moved out of it) with what its partial's manifest
 // needs: the forest object only where a one-lattice plan (make_plan with `only`) has it.
 BakePlan unit_plan(BakePlan& full, std::size_t index);
+
+// The plan overrides a unit of some solutions records ("plan_overrides"), back.
+PlanOverrides plan_overrides_from_json(const nlohmann::json& j);
 
 // "fnv1a64:<hex>" of a file's bytes. Error(Io) when it cannot be read.
 std::string file_checksum(const std::filesystem::path& file);
@@ -62,10 +76,13 @@ struct MergeOptions {
   bool move_files = false;  // rename the parts' files instead of copying (a bake --resume's own parts)
 };
 
-// Combines partial outputs, one per unit, into `target` (staged: complete or untouched). Every
-// part must be a finished partial of the same scene, lblight version, backend and precision, every
-// unit given exactly once, and every file must match its checksum; otherwise Error(InvalidInput)
-// naming the part (a damaged or foreign partial is never merged). The manifest equals a
+// Combines partial outputs into `target` (staged: complete or untouched). Every part must be a
+// finished partial of the same scene, lblight version, backend and precision, every unit given
+// exactly once (or, for a unit split by solutions, every solution exactly once), and every file
+// must match its checksum; otherwise Error(InvalidInput) naming the part (a damaged or foreign
+// partial is never merged). A split unit is assembled first: its model planned again (the scene
+// from --scene or the parts' manifest; its hash must be the parts'), the parts' totals fed in bake
+// order through the bake's own output (BakeOutput, B00 summed by AmbientSum). The manifest equals a
 // one-machine bake's except its run record (run_record_fields): created and command are the
 // merge's, total_seconds the sum of the units', backend.description the units' (distinct ones
 // joined by "; "). Returns it.

@@ -173,6 +173,61 @@ TEST_CASE("merge refuses damaged, foreign, missing and repeated parts and writes
   CHECK(run_cli("merge" + part_list("parts") + " -o merged", tmp.path()).exit_code == 0);
 }
 
+TEST_CASE("A model baked in shares of its solutions merges into exactly the one-machine bake", "[cli][units]") {
+  // tree: 3 distinct channels (a batch is one solution); puff: one channel (a batch is 3 solutions).
+  // All 19 solutions: B00 is the sum of B01..B18, which only the merge has.
+  TempDir tmp;
+  write_text(tmp / "scene.json", R"({"version": 1, "name": "shares",
+    "models": [{"name": "tree", "density": {"type": "procedural", "shape": "plant", "resolution": 10, "seed": 4,
+                                            "size": 1.2}, "material": "leaf", "wood_material": "bark"},
+               {"name": "puff", "density": {"type": "procedural", "shape": "cloud", "resolution": 8, "size": 1.0},
+                "material": "cloud"}],
+    "lighting": {"mode": "base", "solutions": "all"},
+    "solver": {"iterations": "auto", "tolerance": 1e-3, "max_iterations": 200},
+    "output": {"lbh": {"threshold": 0.01, "relative": true}}})");
+  REQUIRE(run_cli("-q bake scene.json --backend cpu -o whole", tmp.path()).exit_code == 0);
+  for (const char* share : {"tree:1-5", "tree:6-18", "puff:1-9", "puff:10-18"}) {
+    const std::string dir = std::string("share-") + share;
+    const CliResult r = run_cli(std::string("-q bake scene.json --backend cpu --only ") + share + " -o " + dir, tmp.path());
+    INFO(r.err);
+    REQUIRE(r.exit_code == 0);
+  }
+  const nlohmann::json share = nlohmann::json::parse(read_text(tmp / "share-tree:1-5" / "manifest.json"));
+  CHECK(share["unit"]["solutions"] == nlohmann::json({1, 2, 3, 4, 5}));
+  CHECK(share["unit"]["totals"]["B03"] == "tree.B03.totals");
+  CHECK(share["models"][0]["solutions"].size() == 5);
+  CHECK(share["unit"]["hash"] != share["unit"]["model_hash"]);
+
+  const std::string all = " share-tree:6-18 share-puff:10-18 share-tree:1-5 share-puff:1-9";
+  const CliResult m = run_cli("merge" + all + " -o merged", tmp.path());
+  INFO(m.err);
+  REQUIRE(m.exit_code == 0);
+  CHECK(m.err.find("unit 'tree': assembled from 2 part(s)") != std::string::npos);
+  CHECK_FALSE(fs::exists(tmp / "merged.assembling"));
+  const CliResult same = run_cli("compare --exact whole merged", tmp.path());
+  INFO(same.out);
+  CHECK(same.exit_code == 0);
+
+  // Shares must be whole batches, never the summed B00, and every solution exactly once.
+  const CliResult split = run_cli("bake scene.json --backend cpu --only puff:1-2 -o x", tmp.path());
+  CHECK(split.exit_code == 2);
+  CHECK(split.err.find("split a batch of model 'puff'") != std::string::npos);
+  CHECK(split.err.find("B01,B02,B03 | B04,B05,B06") != std::string::npos);
+  const CliResult b00 = run_cli("bake scene.json --backend cpu --only tree:0-5 -o x", tmp.path());
+  CHECK(b00.exit_code == 2);
+  CHECK(b00.err.find("B00 of model 'tree' is the sum of B01..B18") != std::string::npos);
+  CHECK_FALSE(fs::exists(tmp / "x"));
+  const CliResult lacking = run_cli("merge share-tree:1-5 share-puff:1-9 share-puff:10-18 -o m2", tmp.path());
+  CHECK(lacking.exit_code == 2);
+  CHECK(lacking.err.find("no part holds its solution(s) [6,7,8,9,10,11,12,13,14,15,16,17,18]") != std::string::npos);
+  REQUIRE(run_cli("-q bake scene.json --backend cpu --only tree:5-6 -o overlap", tmp.path()).exit_code == 0);
+  const CliResult twice = run_cli("merge" + all + " overlap -o m2", tmp.path());
+  CHECK(twice.exit_code == 2);
+  CHECK(twice.err.find("refused part overlap: its solutions [6] of unit 'tree' are also in part share-tree:6-18") !=
+        std::string::npos);
+  CHECK_FALSE(fs::exists(tmp / "m2"));
+}
+
 TEST_CASE("The unit bake --only names must be a lattice of the scene", "[cli][units]") {
   TempDir tmp;
   write_text(tmp / "scene.json", forest_scene());
