@@ -71,7 +71,7 @@ int run_submit(SubmitArgs a) {
   if (!a.slurm) throw_invalid("say which scheduler: --slurm (the only one lblight submits to)", {"--slurm", {}, {}});
   const Scene scene = load_scene(a.solve.scene);
   const fs::path out = fs::absolute(output_folder_path(a.output)).lexically_normal();
-  check_submission_folder(out);
+  check_submission_folder(out, scene.name);
   // The backend every unit runs on (part of its inputs hash): a GPU asked for means CUDA.
   std::string backend = a.solve.backend == "auto" ? (a.settings.gpus_per_task > 0 ? "cuda" : "cpu") : a.solve.backend;
   if (backend == "cpu" && a.settings.gpus_per_task > 0)

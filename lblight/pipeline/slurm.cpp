@@ -108,14 +108,20 @@ fs::path part_dir(const fs::path& out, const std::string& unit) { return out / "
 fs::path state_file(const fs::path& out, const std::string& unit) { return out / "state" / (unit + ".json"); }
 fs::path merged_dir(const fs::path& out) { return out / "bake"; }
 
-void check_submission_folder(const fs::path& out) {
+void check_submission_folder(const fs::path& out, const std::string& scene_name) {
   std::error_code ec;
   if (!fs::exists(out, ec)) return;
   if (!fs::is_directory(out, ec)) throw_invalid("is not a folder; name a folder for the submission", {out.string(), {}, {}});
-  if (fs::is_empty(out, ec) || fs::exists(submission_file(out), ec)) return;
-  throw_invalid("holds something other than an lblight submission (no submit.json); name a new or empty folder, or "
-                "a previous submission's",
-                {out.string(), {}, {}});
+  if (fs::is_empty(out, ec)) return;
+  if (!fs::exists(submission_file(out), ec))
+    throw_invalid("holds something other than an lblight submission (no submit.json); name a new or empty folder, or "
+                  "a previous submission's",
+                  {out.string(), {}, {}});
+  const Submission previous = read_submission(out);
+  if (previous.scene_name != scene_name)
+    throw_invalid("holds a submission of scene '" + previous.scene_name + "', not '" + scene_name +
+                      "'; name a new or empty folder",
+                  {submission_file(out).string(), "/scene/name", {}});
 }
 
 std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume) {

@@ -67,9 +67,9 @@ std::filesystem::path part_dir(const std::filesystem::path& out, const std::stri
 std::filesystem::path state_file(const std::filesystem::path& out, const std::string& unit);
 std::filesystem::path merged_dir(const std::filesystem::path& out);
 
-// Checks that `out` may hold a submission: absent, empty, or a previous submission (submit.json)
-// of the same scene name. Error(InvalidInput) naming what is in the way.
-void check_submission_folder(const std::filesystem::path& out);
+// Checks that `out` may hold a submission of scene `scene_name`: absent, empty, or a previous
+// submission (submit.json) of a scene of that name. Error(InvalidInput) naming what is in the way.
+void check_submission_folder(const std::filesystem::path& out, const std::string& scene_name);
 
 // Writes submit.json and both scripts (creating the folders); `resume`: the tasks bake with
 // --resume. Returns the paths of the array and merge scripts.

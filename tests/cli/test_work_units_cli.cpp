@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <fstream>
+#include <map>
 
 #include <nlohmann/json.hpp>
 
@@ -236,6 +237,56 @@ TEST_CASE("The unit bake --only names must be a lattice of the scene", "[cli][un
   CHECK(r.err.find("--only 'trunk' is not a lattice of this scene; allowed: tree, puff, forest, forest.alone.tree, "
                    "forest.alone.puff") != std::string::npos);
   CHECK_FALSE(fs::exists(tmp / "p"));
+}
+
+TEST_CASE("submit --dry-run writes the scripts; status reads the parts and state files", "[cli][units]") {
+  TempDir tmp;
+  write_text(tmp / "scene.json", forest_scene());
+  const std::string submit = "submit scene.json --slurm --dry-run --no-timing --cpus-per-task 1 -o run";
+  const CliResult dry = run_cli(submit, tmp.path());
+  INFO(dry.err);
+  REQUIRE(dry.exit_code == 0);
+  CHECK(dry.out.find("--array=0-4 ") != std::string::npos);
+  CHECK(dry.out.find("--dependency=afterok:") != std::string::npos);
+  const std::string units = read_text(tmp / "run" / "slurm" / "units.sbatch");
+  CHECK(units.find("units=(tree puff forest forest.alone.tree forest.alone.puff)") != std::string::npos);
+  CHECK(units.find("#SBATCH --time=0-00:10:00") != std::string::npos);  // no estimate: the floor
+  CHECK(units.find("#SBATCH --mem=") != std::string::npos);
+  CHECK(units.find("--only \"$unit\" --backend cpu") != std::string::npos);
+  CHECK(units.find("gpus") == std::string::npos);
+  const std::string merge = read_text(tmp / "run" / "slurm" / "merge.sbatch");
+  CHECK(merge.find("#SBATCH --kill-on-invalid-dep=yes") != std::string::npos);
+  CHECK(merge.find("merge --scene") != std::string::npos);
+
+  // What the jobs leave: one unit done, one failed, one running.
+  REQUIRE(run_cli("-q bake scene.json --backend cpu --only tree -o run/parts/tree", tmp.path()).exit_code == 0);
+  write_text(tmp / "run" / "state" / "puff.json",
+             R"({"state": "failed", "job": "7_1", "host": "n1", "time": "t", "log": "L", "exit_code": 2})");
+  write_text(tmp / "run" / "state" / "forest.json", R"({"state": "running", "job": "7_2", "host": "n2", "time": "t"})");
+  const CliResult st = run_cli("status run --json", tmp.path());
+  INFO(st.err);
+  REQUIRE(st.exit_code == 0);
+  const nlohmann::json j = nlohmann::json::parse(st.out);
+  std::map<std::string, std::string> states;
+  for (const auto& u : j["units"]) states[u["name"]] = u["state"];
+  CHECK(states == std::map<std::string, std::string>{{"tree", "done"}, {"puff", "failed"}, {"forest", "running"},
+                                                     {"forest.alone.tree", "missing"}, {"forest.alone.puff", "missing"}});
+  CHECK(j["merged"].is_null());
+  const CliResult text = run_cli("status run", tmp.path());
+  CHECK(text.out.find("exit code 2, job 7_1 on n1") != std::string::npos);
+  CHECK(text.out.find("1 done, 1 running, 0 queued, 1 failed, 2 missing") != std::string::npos);
+
+  const CliResult resume = run_cli(submit + " --resume", tmp.path());
+  CHECK(resume.exit_code == 0);
+  CHECK(resume.out.find("done: skipped") != std::string::npos);
+  CHECK(resume.out.find("--array=1-4 ") != std::string::npos);
+
+  write_text(tmp / "other.json", forest_scene("other"));
+  CHECK(run_cli("submit other.json --slurm --dry-run --no-timing -o run", tmp.path()).exit_code == 2);
+  const CliResult gpu = run_cli("submit scene.json --slurm --dry-run --backend cpu --gpus-per-task 1 -o g", tmp.path());
+  CHECK(gpu.exit_code == 2);
+  CHECK(gpu.err.find("--gpus-per-task 1 with --backend cpu") != std::string::npos);
+  CHECK(run_cli("submit scene.json --dry-run -o g", tmp.path()).exit_code == 2);  // --slurm is required
 }
 
 TEST_CASE("the run record: fields two runs of one bake may differ in", "[units]") {
