@@ -51,6 +51,21 @@ std::string words(const std::vector<std::string>& v) {
   return s;
 }
 
+// A job name from the scene's: #SBATCH lines split at spaces, and squeue shows the name as it is.
+std::string job_name(const std::string& scene_name, const std::string& suffix = "") {
+  std::string n = "lblight-" + scene_name + suffix;
+  for (char& c : n)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && !std::strchr("_-.", c)) c = '_';
+  return n;
+}
+
+// Text for a script's comment: a line break in a scene's name would end the comment.
+std::string one_line(std::string text) {
+  for (char& c : text)
+    if (static_cast<unsigned char>(c) < 0x20) c = ' ';
+  return text;
+}
+
 // The #SBATCH lines both scripts share.
 void common_directives(std::ostream& o, const SlurmSettings& s) {
   if (!s.partition.empty()) o << "#SBATCH --partition=" << s.partition << "\n";
@@ -140,10 +155,10 @@ std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume)
 
   std::ostringstream a;
   a << "#!/bin/bash\n"
-    << "# lblight submit: one array task per work unit of scene '" << s.scene_name << "' (docs/scale-out.md).\n"
-    << "# Written by lblight " << kVersion << " (rewritten by every submit); lblight status " << quoted(out)
+    << "# lblight submit: one array task per work unit of scene '" << one_line(s.scene_name) << "' (docs/scale-out.md).\n"
+    << "# Written by lblight " << kVersion << " (rewritten by every submit); lblight status " << one_line(quoted(out))
     << " reads what it leaves.\n"
-    << "#SBATCH --job-name=lblight-" << s.scene_name << "\n"
+    << "#SBATCH --job-name=" << job_name(s.scene_name) << "\n"
     << "#SBATCH --output=" << out << "/logs/slurm-%A_%a.out\n"
     << "#SBATCH --ntasks=1\n"
     << "#SBATCH --cpus-per-task=" << s.slurm.cpus_per_task << "\n"
@@ -183,9 +198,9 @@ std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume)
   merge.push_back(merged_dir(s.out).string());
   std::ostringstream m;
   m << "#!/bin/bash\n"
-    << "# lblight submit: the merge of every unit's partial output of scene '" << s.scene_name
+    << "# lblight submit: the merge of every unit's partial output of scene '" << one_line(s.scene_name)
     << "' into one bake, after the array succeeded (sbatch --dependency=afterok:<array job>).\n"
-    << "#SBATCH --job-name=lblight-" << s.scene_name << "-merge\n"
+    << "#SBATCH --job-name=" << job_name(s.scene_name, "-merge") << "\n"
     << "#SBATCH --output=" << out << "/logs/merge.%j.log\n"
     << "#SBATCH --ntasks=1\n"
     << "#SBATCH --cpus-per-task=1\n"
