@@ -239,7 +239,7 @@ TEST_CASE("The unit bake --only names must be a lattice of the scene", "[cli][un
   CHECK_FALSE(fs::exists(tmp / "p"));
 }
 
-TEST_CASE("submit --dry-run writes the scripts; status reads the parts and state files", "[cli][units]") {
+TEST_CASE("submit --dry-run writes the scripts, and status reads the parts and state files", "[cli][units]") {
   TempDir tmp;
   write_text(tmp / "scene.json", forest_scene());
   const std::string submit = "submit scene.json --slurm --dry-run --no-timing --cpus-per-task 1 -o run";
