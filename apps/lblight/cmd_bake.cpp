@@ -15,6 +15,7 @@
 #include "lblight/core/isolated_call.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/run_bake.h"
+#include "lblight/pipeline/work_units.h"
 
 namespace lblight::cli {
 namespace {
@@ -22,6 +23,8 @@ namespace {
 struct BakeArgs {
   SolveOptions solve;
   std::string output;
+  std::string only;     // one work unit: a partial output (docs/scale-out.md)
+  bool resume = false;  // skip units whose partial is finished
 };
 
 // Progress on stderr: one line per solution, and a heartbeat every few seconds on long ones.
@@ -67,6 +70,7 @@ class ProgressLog final : public BakeObserver {
                       format_error(r.error_estimate)}});
   }
 
+  std::size_t done() const { return done_; }
   std::vector<std::vector<std::string>> rows() const {
     auto sorted = rows_;
     std::stable_sort(sorted.begin(), sorted.end(), [](const Row& a, const Row& b) {
@@ -89,10 +93,30 @@ class ProgressLog final : public BakeObserver {
   std::vector<Row> rows_;
 };
 
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// --resume: whether `dir` holds the finished partial of `unit` (unit_record); logs either way.
+bool unit_done(const nlohmann::json& unit, const std::filesystem::path& dir) {
+  const std::string name = unit["name"], hash = unit["hash"];
+  const PartCheck c = check_part(dir, name, hash, /*verify_checksums=*/true);
+  if (c.state == PartState::Done) {
+    spdlog::info("unit '{}': finished in {} (inputs hash {}), not recomputed", name, dir.string(), hash);
+    return true;
+  }
+  spdlog::info("unit '{}': {}; baking it", name,
+               c.state == PartState::Absent ? "no partial output yet in " + dir.string()
+                                            : dir.string() + " is not its finished partial (" + c.why + ")");
+  return false;
+}
+
 int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   const auto t0 = std::chrono::steady_clock::now();
   const Scene scene = load_scene(args.solve.scene);
-  const PlanOverrides ov = args.solve.overrides();
+  PlanOverrides ov = args.solve.overrides();
+  const UnitSpec only = args.only.empty() ? UnitSpec{} : parse_unit(args.only);
+  if (!only.name.empty()) ov.only = only.name;
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-bake")
                           : std::filesystem::path(args.output));
@@ -106,7 +130,7 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
       const auto guard = hold_forks();  // the driver loads libraries: no .vdb probe forks meanwhile
       return args.solve.make_backend();
     });
-  const BakePlan plan = make_plan(scene, ov, args.solve.run_context());
+  BakePlan plan = make_plan(scene, ov, args.solve.run_context());
   auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
   if (!backend->supports(plan.precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
@@ -117,16 +141,45 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
   std::size_t total = 0;
   for (const ModelPlan& mp : plan.models) total += mp.solutions.size();
-
   ProgressLog log(total);
-  const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  run_bake(plan, *backend, target, global.command_line, log, args.solve.run_context(), before);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const RunContext ctx = args.solve.run_context();
+
+  if (!only.name.empty()) {  // one unit (or some of its solutions): its partial output
+    const nlohmann::json unit = unit_record(plan, plan.models[0], backend->name(), ov, only.solutions);
+    if (args.resume && unit_done(unit, target)) {
+      std::cout << "unit '" << args.only << "' already done in " << target.string() << ": not recomputed\n";
+      return 0;
+    }
+    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0), unit);
+  } else if (args.resume) {
+    // Every unit into <target>.parts (kept until the merge), so that a bake killed mid-way
+    // resumes at the first unfinished unit; then the parts merge into target.
+    const std::filesystem::path parts_dir = target.string() + ".parts";
+    std::filesystem::create_directories(parts_dir);
+    std::vector<std::filesystem::path> parts;
+    std::vector<BakePlan> unit_plans;  // kept: the log holds their models until the summary
+    unit_plans.reserve(plan.models.size());
+    for (std::size_t i = 0; i < plan.models.size(); ++i) {
+      parts.push_back(parts_dir / plan.models[i].spec->name);
+      const nlohmann::json unit = unit_record(plan, plan.models[i], backend->name());
+      if (unit_done(unit, parts.back())) continue;
+      unit_plans.push_back(unit_plan(plan, i));
+      run_bake(unit_plans.back(), *backend, parts.back(), global.command_line, log, ctx, seconds_since(t0), unit);
+    }
+    MergeOptions merge{global.command_line, scene.hash, scene.name, scene.file.string(), lattice_names(scene),
+                       /*move_files=*/true};
+    merge_parts(parts, target, merge, ctx);
+    std::error_code ec;
+    std::filesystem::remove_all(parts_dir, ec);
+    if (ec) spdlog::warn("could not remove {}: {}", parts_dir.string(), ec.message());
+  } else {
+    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0));
+  }
 
   Table table({"model", "solution", "direction", "iterations", "seconds", "error estimate"});
   for (const auto& row : log.rows()) table.add(row);
-  std::cout << table.str() << total << " solution(s) in " << format_seconds(seconds) << " s; output: "
-            << target.string() << "\n";
+  std::cout << table.str() << log.done() << " solution(s) in " << format_seconds(seconds_since(t0))
+            << " s; output: " << target.string() << "\n";
   return 0;
 }
 
@@ -143,6 +196,16 @@ Command add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("-o,--output", args->output, "Output directory (default: <scene name>-bake); replaced if it holds "
                                                 "a previous lblight output")
       ->check(kNonEmpty);
+  cmd->add_option("--only", args->only,
+                  "Bake one work unit, MODEL[:SOLUTIONS]: a model of the scene or a coarse forest lattice (forest, "
+                  "forest.alone.<model>), optionally only some of its solutions (whole batches, e.g. tree:1-6); -o "
+                  "then receives its partial output, which `lblight merge` combines with the others' "
+                  "(docs/scale-out.md)")
+      ->check(kNonEmpty);
+  cmd->add_flag("--resume", args->resume,
+                "Do not recompute finished units: with --only, exit at once when -o holds this unit's finished "
+                "partial (same inputs hash, files intact); without, bake unit by unit into OUTDIR.parts, keeping "
+                "those already there, then merge them into OUTDIR");
   return {cmd, [args, &global] { return run_bake(*args, global); }};
 }
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,6 +29,11 @@ struct BakeRunInfo {
   // A Monte Carlo reference (lblight truth): its settings, recorded as the manifest's
   // "reference"; each solution then also gets a grid <name>_se with its standard error.
   nlohmann::json reference;
+  // A work unit's partial output (docs/scale-out.md): its name, inputs hash and the scene's units,
+  // recorded as the manifest's "unit" with the checksums of the files written. A unit of some of
+  // a model's solutions ("solutions") also writes each one's totals as solved (unmasked floats,
+  // write_raw_totals) to <model>.<grid>.totals, from which a merge assembles the whole model.
+  nlohmann::json unit;
 };
 
 class BakeOutput {
@@ -49,6 +55,7 @@ class BakeOutput {
 
  private:
   void start_model(const ModelPlan& model);
+  std::size_t solutions_expected(const ModelPlan& model) const;
   int grids_per_solution() const { return info_.reference.is_null() ? 1 : 2; }
 
   const BakePlan& plan_;
@@ -64,9 +71,17 @@ class BakeOutput {
   std::unique_ptr<VdbStreamWriter> vdb_;
   double output_seconds_ = 0;          // worker time spent on this model's output
   std::size_t peak_bytes_ = 0;
+  std::size_t unit_solutions_ = 0;     // a unit of that many of a model's solutions (0: all)
+  std::map<std::string, std::string> raw_files_;  // grid -> its .totals file
   nlohmann::json models_ = nlohmann::json::array();
   SerialWorker worker_;
 };
+
+// A solution's totals as a unit's .totals file: R, G, B, one float per lattice node each (native
+// byte order: a merge reads them on the same cluster), and back. Error(Io) / Error(InvalidInput)
+// naming the file when it cannot be written or read, or its size is not 3 x `nodes` floats.
+void write_raw_totals(const std::filesystem::path& file, const std::array<std::vector<float>, 3>& totals);
+std::array<std::vector<float>, 3> read_raw_totals(const std::filesystem::path& file, std::size_t nodes);
 
 // Manifest pieces shared with `validate --json` and `inspect`.
 nlohmann::json material_json(const Material& m);

@@ -40,7 +40,7 @@ class WriteEachSolution final : public BakeObserver {
 
 nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std::filesystem::path& target,
                         const std::string& command_line, BakeObserver& observer, const RunContext& ctx,
-                        double seconds_before) {
+                        double seconds_before, const nlohmann::json& unit) {
   const auto t0 = std::chrono::steady_clock::now();
   // Every model must fit before the first one solves: a bake that fails at its second model has
   // spent the first one's time for nothing.
@@ -49,11 +49,13 @@ nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std:
     if (!cost.fits) throw Error(ErrorCategory::Unavailable, cost.why_not);
   }
   // On a GPU the host waits on the device: convert and write each solution while the next solves.
-  BakeOutput output(plan, target, {command_line, backend.name(), backend.description(), {}},
+  BakeOutput output(plan, target, {command_line, backend.name(), backend.description(), {}, unit},
                     /*write_in_background=*/!backend.occupies_host_cores());
   WriteEachSolution writer(output, observer);
+  BakeOptions options;  // a unit of some of the model's solutions bakes only those
+  if (unit.is_object() && unit.contains("solutions")) options.solutions = unit["solutions"].get<std::vector<int>>();
   for (const ModelPlan& mp : plan.models) {
-    bake_model(mp, backend, {}, writer, ctx);
+    bake_model(mp, backend, options, writer, ctx);
     output.finish_model(mp);
   }
   ctx.check_cancelled();  // a signal during the last model's output: nothing goes into place

@@ -20,9 +20,10 @@ namespace lblight {
 // output overlaps the solve; the manifest comes last and is returned. `observer` sees every event
 // first (progress logs, summaries) and must leave the solutions' totals in place.
 // seconds_before: time already spent on the run (loading, planning), counted in the manifest's
-// total_seconds. Error(Cancelled) once ctx.cancel is set, leaving nothing behind.
+// total_seconds. Error(Cancelled) once ctx.cancel is set, leaving nothing behind. `unit`: the plan
+// is one work unit (unit_record, docs/scale-out.md) and the output its partial.
 nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std::filesystem::path& target,
                         const std::string& command_line, BakeObserver& observer, const RunContext& ctx = {},
-                        double seconds_before = 0);
+                        double seconds_before = 0, const nlohmann::json& unit = nullptr);
 
 }  // namespace lblight

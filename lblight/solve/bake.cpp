@@ -252,83 +252,67 @@ struct SystemRef {
   int channel;   // index into mp.channels
 };
 
-// B_0 assembled from the directional solutions as they finish (docs/model.md sec. 4). Interior nodes:
-// sum_j b_j B_j with b the boundary of B_0 (1 each in the papers' model, 18 w_j for isotropic
-// ambient light); boundary nodes: B_0's own fixed total, the sum of its boundary values (19 in the
-// papers' model). Error bound: ||sum b_j e_j|| <= sum b_j eps_j ||B_j||, over ||B_0||.
-class AmbientSum {
- public:
-  AmbientSum(const ModelPlan& mp) : mp_(mp) {
-    for (const SolutionPlan& s : mp.solutions)
-      if (s.derived) plan_ = &s;
-    if (!plan_) return;
-    for (auto& c : sum_) c.assign(mp.lattice.dims.count(), 0.0);
-  }
-  bool wanted() const { return plan_ != nullptr; }
-
-  void add(const SolutionResult& r) {
-    if (!plan_ || r.plan.index < 1) return;
-    const auto t0 = Clock::now();
-    double norm_sq = 0, peak = 0;
-    const double b = plan_->boundary[static_cast<std::size_t>(r.plan.index)];
-    for (int c = 0; c < kChannels; ++c) {
-      const std::vector<float>& t = r.totals[c];
-      for (std::size_t i = 0; i < t.size(); ++i) {
-        sum_[c][i] += b * t[i];
-        norm_sq += static_cast<double>(t[i]) * t[i];
-        peak = std::max(peak, static_cast<double>(t[i]));
-      }
-    }
-    bound_ += b * r.error_estimate * std::sqrt(norm_sq);
-    bound_max_ += b * r.error_estimate_max * peak;
-    iterations_ = std::max(iterations_, r.iterations);
-    converged_ = converged_ && r.converged;
-    ++count_;
-    seconds_ += std::chrono::duration<double>(Clock::now() - t0).count();
-  }
-
-  // After all 18 directional solutions.
-  void finish(BakeObserver& observer) {
-    if (!plan_) return;
-    if (count_ != 18) throw Error(ErrorCategory::Internal, "B00 from the sum: expected 18 directional solutions");
-    const auto t0 = Clock::now();
-    SolutionResult r;
-    r.plan = *plan_;
-    const Dims& d = mp_.lattice.dims;
-    double boundary_total = 0;
-    for (double b : plan_->boundary) boundary_total += b;
-    double norm_sq = 0, max_value = 0;
-    for (int c = 0; c < kChannels; ++c) {
-      r.totals[c].resize(d.count());
-      for (int z = 0; z < d.nz; ++z)
-        for (int y = 0; y < d.ny; ++y)
-          for (int x = 0; x < d.nx; ++x) {
-            const std::size_t i = d.index(x, y, z);
-            const double v = d.is_boundary(x, y, z) ? boundary_total : sum_[c][i];
-            r.totals[c][i] = static_cast<float>(v);
-            norm_sq += v * v;
-            max_value = std::max(max_value, v);
-          }
-    }
-    r.iterations = iterations_;
-    r.converged = converged_;
-    r.error_estimate = norm_sq > 0 ? bound_ / std::sqrt(norm_sq) : 0.0;
-    r.error_estimate_max = max_value > 0 ? bound_max_ / max_value : 0.0;
-    r.seconds = seconds_ + std::chrono::duration<double>(Clock::now() - t0).count();
-    for (auto& c : sum_) std::vector<double>().swap(c);
-    observer.solution_done(mp_, r);
-  }
-
- private:
-  const ModelPlan& mp_;
-  const SolutionPlan* plan_ = nullptr;
-  std::array<std::vector<double>, 3> sum_;
-  double bound_ = 0, bound_max_ = 0, seconds_ = 0;
-  int iterations_ = 0, count_ = 0;
-  bool converged_ = true;
-};
-
 }  // namespace
+
+AmbientSum::AmbientSum(const ModelPlan& mp, bool wanted) : mp_(mp) {
+  if (!wanted) return;
+  for (const SolutionPlan& s : mp.solutions)
+    if (s.derived) plan_ = &s;
+  if (!plan_) return;
+  for (auto& c : sum_) c.assign(mp.lattice.dims.count(), 0.0);
+}
+
+void AmbientSum::add(const SolutionResult& r) {
+  if (!plan_ || r.plan.index < 1) return;
+  const auto t0 = Clock::now();
+  double norm_sq = 0, peak = 0;
+  const double b = plan_->boundary[static_cast<std::size_t>(r.plan.index)];
+  for (int c = 0; c < kChannels; ++c) {
+    const std::vector<float>& t = r.totals[c];
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      sum_[c][i] += b * t[i];
+      norm_sq += static_cast<double>(t[i]) * t[i];
+      peak = std::max(peak, static_cast<double>(t[i]));
+    }
+  }
+  bound_ += b * r.error_estimate * std::sqrt(norm_sq);
+  bound_max_ += b * r.error_estimate_max * peak;
+  iterations_ = std::max(iterations_, r.iterations);
+  converged_ = converged_ && r.converged;
+  ++count_;
+  seconds_ += seconds_since(t0);
+}
+
+void AmbientSum::finish(BakeObserver& observer) {
+  if (!plan_) return;
+  if (count_ != 18) throw Error(ErrorCategory::Internal, "B00 from the sum: expected 18 directional solutions");
+  const auto t0 = Clock::now();
+  SolutionResult r;
+  r.plan = *plan_;
+  const Dims& d = mp_.lattice.dims;
+  double boundary_total = 0;
+  for (double b : plan_->boundary) boundary_total += b;
+  double norm_sq = 0, max_value = 0;
+  for (int c = 0; c < kChannels; ++c) {
+    r.totals[c].resize(d.count());
+    for (int z = 0; z < d.nz; ++z)
+      for (int y = 0; y < d.ny; ++y)
+        for (int x = 0; x < d.nx; ++x) {
+          const std::size_t i = d.index(x, y, z);
+          const double v = d.is_boundary(x, y, z) ? boundary_total : sum_[c][i];
+          r.totals[c][i] = static_cast<float>(v);
+          norm_sq += v * v;
+          max_value = std::max(max_value, v);
+        }
+  }
+  r.iterations = iterations_;
+  r.converged = converged_;
+  r.error_estimate = norm_sq > 0 ? bound_ / std::sqrt(norm_sq) : 0.0;
+  r.error_estimate_max = max_value > 0 ? bound_max_ / max_value : 0.0;
+  r.seconds = seconds_ + seconds_since(t0);
+  for (auto& c : sum_) std::vector<double>().swap(c);
+  observer.solution_done(mp_, r);
+}
 
 // An uneven last batch would step as often as the others with a fraction of the device busy.
 int balanced_batch(int total, int capacity, int channels) {
@@ -422,8 +406,73 @@ void add_channel(PartialSolution& p, const BatchOutcome& outcome, std::size_t s,
 
 }  // namespace
 
+std::vector<std::vector<int>> solution_batches(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
+  BakeOptions whole = opt;
+  whole.solutions.clear();
+  const int capacity = batch_capacity(mp, backend, whole);
+  const int channels = static_cast<int>(mp.channels.size());
+  const std::vector<SystemRef> queue = system_queue(mp);
+  std::vector<std::vector<int>> batches;
+  for (std::size_t start = 0; start < queue.size();) {
+    const std::size_t end = batch_end(queue, start, capacity, channels);
+    std::vector<int> b;
+    for (std::size_t q = start; q < end; ++q) {
+      const int index = mp.solutions[static_cast<std::size_t>(queue[q].solution)].index;
+      if (b.empty() || b.back() != index) b.push_back(index);
+    }
+    batches.push_back(b);
+    start = end;
+  }
+  return batches;
+}
+
+namespace {
+
+std::string grid_list(const std::vector<int>& indices, const char* sep = " ") {
+  std::string s;
+  for (int i : indices) s += (s.empty() ? "" : sep) + base_grid_name(i);
+  return s;
+}
+
+// A unit's solutions: planned for the model, not derived, and whole batches.
+void check_solution_subset(const ModelPlan& mp, const std::vector<std::vector<int>>& batches,
+                           const std::vector<int>& subset) {
+  const std::string model = "model '" + mp.spec->name + "'";
+  for (int index : subset) {
+    const auto it = std::find_if(mp.solutions.begin(), mp.solutions.end(),
+                                 [&](const SolutionPlan& s) { return s.index == index; });
+    if (it == mp.solutions.end()) {
+      std::vector<int> planned;
+      for (const SolutionPlan& s : mp.solutions) planned.push_back(s.index);
+      throw_invalid(base_grid_name(index) + " is not a solution of " + model + "; allowed: " + grid_list(planned));
+    }
+    if (it->derived)
+      throw_invalid(base_grid_name(index) + " of " + model + " is the sum of B01..B18, not solved: the merge of "
+                    "the units computes it; leave it out");
+  }
+  std::vector<std::string> groups;
+  bool split = false;
+  for (const std::vector<int>& b : batches) {
+    const auto in = [&](int i) { return std::find(subset.begin(), subset.end(), i) != subset.end(); };
+    const bool all = std::all_of(b.begin(), b.end(), in), none = std::none_of(b.begin(), b.end(), in);
+    split = split || (!all && !none);
+    groups.push_back(grid_list(b, ","));
+  }
+  if (split) {
+    std::string allowed;
+    for (const std::string& g : groups) allowed += (allowed.empty() ? "" : " | ") + g;
+    throw_invalid("solutions " + grid_list(subset) + " split a batch of " + model +
+                  " (a batch runs until its slowest system is done: only whole batches come out as in a whole "
+                  "bake); allowed: unions of the batches " + allowed);
+  }
+}
+
+}  // namespace
+
 void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer,
                 const RunContext& ctx) {
+  const bool subset = !opt.solutions.empty();
+  if (subset) check_solution_subset(mp, solution_batches(mp, backend, opt), opt.solutions);
   if (mp.steps.method == SolverMethod::BiCGStab && mp.steps.mode != IterationMode::Auto)
     throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate)");
   const int capacity = batch_capacity(mp, backend, opt);
@@ -446,7 +495,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   const std::vector<SystemRef> queue = system_queue(mp);
   const int channels = static_cast<int>(mp.channels.size());
   const bool fixed = mp.steps.mode != IterationMode::Auto;
-  AmbientSum ambient(mp);
+  AmbientSum ambient(mp, /*wanted=*/!subset);
   std::vector<PartialSolution> partial(mp.solutions.size());
   for (std::size_t s = 0; s < partial.size(); ++s) {
     partial[s].result.plan = mp.solutions[s];
@@ -456,6 +505,11 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
 
   for (std::size_t start = 0; start < queue.size();) {
     const std::size_t end = batch_end(queue, start, capacity, channels);
+    const int first = mp.solutions[static_cast<std::size_t>(queue[start].solution)].index;
+    if (subset && std::find(opt.solutions.begin(), opt.solutions.end(), first) == opt.solutions.end()) {
+      start = end;  // another unit's batch (whole batches only: checked above)
+      continue;
+    }
     std::vector<SystemSpec> batch;
     std::vector<const SolutionPlan*> batch_solutions;
     for (std::size_t q = start; q < end; ++q) {

@@ -32,6 +32,9 @@ struct PlanOverrides {
   std::optional<double> tolerance;            // --tolerance
   std::optional<Precision> precision;
   std::optional<SolverMethod> method;         // --method
+  // --only: plan just this lattice (a work unit, docs/scale-out.md): a scene model, loading only
+  // its grid, or a coarse forest lattice, which needs every model's grid.
+  std::optional<std::string> only;
 };
 
 struct SolutionPlan {
@@ -118,6 +121,10 @@ struct ForestPlan {
 
 inline constexpr const char* kForestCoarseName = "forest";
 std::string forest_alone_name(const std::string& model);  // "forest.alone.<model>"
+
+// The names of a scene's lattices in plan order (its models, then "forest" and "forest.alone.<m>"
+// when it has coarse forest lattices), without loading any grid: the work units of a bake.
+std::vector<std::string> lattice_names(const Scene& scene);
 
 struct BakePlan {
   const Scene* scene = nullptr;
