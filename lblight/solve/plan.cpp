@@ -338,20 +338,29 @@ void plan_forest(BakePlan& plan, const Scene& scene, const PlanOverrides& ov) {
 
 std::string forest_alone_name(const std::string& model) { return std::string(kForestCoarseName) + ".alone." + model; }
 
-BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
+BakePlan plan_without_models(const Scene& scene, const PlanOverrides& ov) {
   BakePlan plan;
   plan.scene = &scene;
   plan.precision = ov.precision.value_or(scene.solver.precision);
+  return plan;
+}
+
+ModelPlan plan_model(BakePlan& plan, const ModelSpec& spec, ModelGrid grid, const PlanOverrides& ov) {
+  const Scene& scene = *plan.scene;
+  ModelPlan mp;
+  mp.spec = &spec;
+  plan_lattice(mp, scene, std::move(grid), plan.warnings);
+  plan_channels(mp, scene.solver.model);
+  plan_solutions(mp, scene, ov);
+  plan_steps(mp, scene, ov, plan.precision);
+  return mp;
+}
+
+BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
+  BakePlan plan = plan_without_models(scene, ov);
   plan.models.reserve(scene.models.size());
-  for (const ModelSpec& spec : scene.models) {
-    ModelPlan mp;
-    mp.spec = &spec;
-    plan_lattice(mp, scene, load_model_grid(spec, scene, ctx), plan.warnings);
-    plan_channels(mp, scene.solver.model);
-    plan_solutions(mp, scene, ov);
-    plan_steps(mp, scene, ov, plan.precision);
-    plan.models.push_back(std::move(mp));
-  }
+  for (const ModelSpec& spec : scene.models)
+    plan.models.push_back(plan_model(plan, spec, load_model_grid(spec, scene, ctx), ov));
   if (!scene.forest.empty()) plan_forest(plan, scene, ov);
   return plan;
 }
