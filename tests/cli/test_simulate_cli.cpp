@@ -81,6 +81,11 @@ TEST_CASE("simulate: a bake lights the chosen frame of the gas", "[cli][fluid]")
   const nlohmann::json m = nlohmann::json::parse(read_text(tmp / "bake" / "manifest.json"));
   CHECK(m["models"][0]["source"].get<std::string>().find("frame 2 of 3") != std::string::npos);
   CHECK(m["models"][0]["occupied_nodes"].get<long long>() > 20);
+  // validate plans that frame too, and says it simulated to get it.
+  const CliResult v = run_cli("validate gas.json --backend cpu --no-timing", tmp.path());
+  CHECK(v.exit_code == 0);
+  CHECK(v.out.find("frame 2 of 3") != std::string::npos);
+  CHECK(v.out.find("ran the gas simulation up to this frame") != std::string::npos);
 }
 
 TEST_CASE("simulate: unstable or unusable gas settings are refused by field, with nothing written", "[cli][fluid]") {
