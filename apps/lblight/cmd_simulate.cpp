@@ -57,7 +57,7 @@ ModelExtras frame_fields(const ModelSpec& m, const GasSource& src, int f, const 
     e.grids.push_back(std::move(o));
   }
   const long long steps = static_cast<long long>(f) * src.steps_per_frame;
-  e.file_metadata = {{"lblight_frame", f}, {"lblight_steps", steps}, {"lblight_model", m.name}};
+  e.file_metadata = {{"lblight_frame", f}, {"lblight_steps", steps}, {"lblight_gas_model", m.name}};
   e.manifest = {{"gas_model", m.name}, {"frame", f}, {"gas_steps", steps}};
   return e;
 }
@@ -137,12 +137,15 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
                        format_seconds(lit.seconds), format_error(lit.error_estimate)});
         light_steps += lit.steps;
       } else {
-        std::vector<DenseGridOut> grids = {
-            {"density", &smoke.density, nullptr, true, {{"lblight_meaning", "smoke concentration / inlet smoke, clamped to [0, 1]"}}}};
-        for (const ModelExtras::Grid& g : fields.grids)
-          grids.push_back({g.name, g.scalar.empty() ? nullptr : &g.scalar, g.scalar.empty() ? &g.rgb : nullptr, false, g.metadata});
+        std::vector<DenseGridOut> grids = {{"density", &smoke.density, nullptr, true,
+                                            {{"lblight_meaning", "smoke concentration / inlet smoke, clamped to [0, 1]"}}}};
+        for (const ModelExtras::Grid& g : fields.grids) {
+          const bool scalar = !g.scalar.empty();
+          grids.push_back({g.name, scalar ? &g.scalar : nullptr, scalar ? nullptr : &g.rgb, false, g.metadata});
+        }
         nlohmann::json meta = fields.file_metadata;
         meta["lblight_version"] = kVersion;
+        meta["lblight_model"] = m->name;
         write_vdb(out.path(name), smoke.frame(), grids, meta);
       }
       record["frames"].push_back(entry);

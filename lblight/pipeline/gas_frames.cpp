@@ -18,7 +18,9 @@ namespace {
 class FrameRecord final : public BakeObserver {
  public:
   explicit FrameRecord(BakeObserver& next) : next_(next) {}
-  void model_started(const ModelPlan& mp, const Backend& b, std::size_t bytes) override { next_.model_started(mp, b, bytes); }
+  void model_started(const ModelPlan& mp, const Backend& b, std::size_t bytes) override {
+    next_.model_started(mp, b, bytes);
+  }
   void memory_in_use(const ModelPlan& mp, std::size_t bytes) override { next_.memory_in_use(mp, bytes); }
   void progress(const BakeProgress& p) override { next_.progress(p); }
   void solution_done(const ModelPlan& mp, SolutionResult& r) override {
@@ -74,7 +76,8 @@ GasFrameLit GasFrameLighting::light(int frame, ModelGrid smoke, ModelExtras extr
   const PlanCost cost = plan_cost(mp, backend_);
   if (!cost.fits) throw Error(ErrorCategory::Unavailable, cost.why_not);
   if (warm_ && states_.states.empty())
-    check_host_memory(static_cast<double>(mp.systems()) * d3q19::kQ * sizeof(float) * static_cast<double>(mp.lattice.dims.count()),
+    check_host_memory(static_cast<double>(mp.systems()) * d3q19::kQ * sizeof(float) *
+                          static_cast<double>(mp.lattice.dims.count()),
                       "the states kept from frame to frame for warm starts (" + std::to_string(mp.systems()) +
                           " system(s) of " + std::to_string(mp.lattice.dims.count()) + " nodes)",
                       "light every frame from zero (--cold), bake fewer solutions or lower the resolution",

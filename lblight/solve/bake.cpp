@@ -460,12 +460,6 @@ void keep_states(const StateAccess& state, WarmStart& warm, std::size_t first, s
 
 }  // namespace
 
-std::size_t WarmStart::bytes() const {
-  std::size_t n = 0;
-  for (const auto& s : states) n += s.size() * sizeof(float);
-  return n;
-}
-
 void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer,
                 const RunContext& ctx) {
   if (mp.steps.method == SolverMethod::BiCGStab && mp.steps.mode != IterationMode::Auto)

@@ -68,7 +68,6 @@ class BakeObserver {
 struct WarmStart {
   Dims dims;                                // the lattice the states belong to
   std::vector<std::vector<float>> states;   // per system in bake order: 19 x dims.count(), direction-major
-  std::size_t bytes() const;
 };
 
 struct BakeOptions {

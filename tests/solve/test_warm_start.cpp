@@ -10,6 +10,7 @@
 
 #include "lblight/solve/bake.h"
 #include "lblight/solve/plan.h"
+#include "tests/backend/emulated_gpu.h"
 #include "tests/support/test_support.h"
 
 using namespace lblight;
@@ -49,7 +50,8 @@ struct Frame {
 };
 
 // One frame planned on the whole box (as a gas frame is) and baked, from `warm` when given.
-Frame bake_frame(const Scene& scene, double z, WarmStart* warm, Precision p = Precision::Float32) {
+Frame bake_frame(const Scene& scene, double z, WarmStart* warm, Precision p = Precision::Float32,
+                 const Backend* backend = nullptr) {
   PlanOverrides ov;
   ov.precision = p;
   BakePlan plan = plan_without_models(scene, ov);
@@ -60,7 +62,7 @@ Frame bake_frame(const Scene& scene, double z, WarmStart* warm, Precision p = Pr
   KeepSolutions keep(out);
   BakeOptions options;
   options.warm = warm;
-  bake_model(mp, *cpu_backend(2), options, keep);
+  bake_model(mp, backend ? *backend : *cpu_backend(2), options, keep);
   REQUIRE(out.size() == 1);
   return {out.begin()->second, out.begin()->second.warm_start};
 }
@@ -111,6 +113,20 @@ TEST_CASE("A warm-started frame reaches a cold start's light within the toleranc
   const Frame repeat = bake_frame(scene, 8.0, &again);
   CHECK(repeat.result.iterations == warm.result.iterations);
   for (int c = 0; c < 3; ++c) CHECK(repeat.result.totals[c] == warm.result.totals[c]);
+}
+
+TEST_CASE("Warm starts through the GPU solver's state access (emulated device)", "[bake][warm][emulated]") {
+  const Scene scene = smoke_scene("1e-3");
+  const auto gpu = make_emulated_gpu_backend();
+  WarmStart states;
+  bake_frame(scene, 7.0, &states, Precision::Float32, gpu.get());
+  const Frame warm = bake_frame(scene, 8.0, &states, Precision::Float32, gpu.get());
+  const Frame cold = bake_frame(scene, 8.0, nullptr, Precision::Float32, gpu.get());
+  const Frame reference = bake_frame(smoke_scene("1e-8"), 8.0, nullptr, Precision::Float64);
+  INFO("steps: warm " << warm.result.iterations << ", cold " << cold.result.iterations);
+  CHECK(warm.warm);
+  CHECK(warm.result.iterations < cold.result.iterations);
+  CHECK(relative_l2(warm.result, reference.result) < 1e-3);
 }
 
 TEST_CASE("States of another lattice do not start a frame", "[bake][warm]") {
