@@ -13,7 +13,8 @@ namespace lblight {
 enum class OutputKind {
   Bake,    // manifest.json (lblight_version, models) and .vdb/.lbh files (.totals: a unit's share)
   Report,  // report.json (curves, references), report.csv and .svg plots
-  Simulation,  // simulation.json (lblight_version, frames) and one .vdb per model and frame
+  Simulation,  // simulation.json (lblight_version, frames), one .vdb per model and frame, and the
+               // manifest.json (and .lbh files) of their lighting (simulate --light)
 };
 
 // The output folder a user named, as lblight uses it: lexically normal, without a trailing

@@ -102,8 +102,8 @@ nlohmann::json savings_json(const ModelPlan& mp) {
 }
 
 BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
-                       bool write_in_background)
-    : plan_(plan), dir_(target, OutputKind::Bake), info_(std::move(info)), worker_(write_in_background) {
+                       bool write_in_background, OutputKind kind)
+    : plan_(plan), dir_(target, kind), info_(std::move(info)), worker_(write_in_background) {
   if (info_.unit.is_object() && info_.unit.contains("solutions")) unit_solutions_ = info_.unit["solutions"].size();
 }
 
@@ -137,6 +137,10 @@ nlohmann::json lattice_box_json(const ModelPlan& mp) {
 DenseFrame dense_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 DenseFrame lbh_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 constexpr int kBackgroundParallelGrids = 4;
+nlohmann::json merged(nlohmann::json a, const nlohmann::json& b) {
+  a.update(b);
+  return a;
+}
 double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -163,9 +167,12 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   // In the background, up to 4 grids compress at once (Blosc is serial per grid and would
   // otherwise fall behind a GPU); inline, the OpenMP solver needs the cores back after each grid.
   const int parallel_grids = worker_.background() ? kBackgroundParallelGrids : 1;
+  const ModelExtras* extras = extras_for(mp);
+  const std::size_t extra_grids = extras ? extras->grids.size() : 0;
   vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
-                                           static_cast<int>(1 + has_wood + solutions_expected(mp) * grids_per_solution()),
-                                           file_meta,
+                                           static_cast<int>(1 + has_wood + extra_grids +
+                                                            solutions_expected(mp) * grids_per_solution()),
+                                           extras ? merged(file_meta, extras->file_metadata) : file_meta,
                                            parallel_grids);
   worker_.post([this, &mp, has_wood] {
     const auto t0 = std::chrono::steady_clock::now();
@@ -179,7 +186,25 @@ void BakeOutput::start_model(const ModelPlan& mp) {
     }
     output_seconds_ += since(t0);
   });
+  if (extras)
+    worker_.post([this, &mp, extras] {
+      const auto t0 = std::chrono::steady_clock::now();
+      for (const ModelExtras::Grid& e : extras->grids) {
+        const bool scalar = !e.scalar.empty();
+        vdb_->add({e.name, scalar ? &e.scalar : nullptr, scalar ? nullptr : &e.rgb, false,
+                   merged(lattice_box_json(mp), e.metadata)});
+      }
+      output_seconds_ += since(t0);
+    });
 }
+
+void BakeOutput::set_extras(const ModelPlan& mp, ModelExtras extras) {
+  if (model_ == &mp) throw Error(ErrorCategory::Internal, "bake output: extras after the model's first solution");
+  extras_model_ = &mp;
+  extras_ = std::move(extras);
+}
+
+const ModelExtras* BakeOutput::extras_for(const ModelPlan& mp) const { return extras_model_ == &mp ? &extras_ : nullptr; }
 
 void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   if (model_ != &mp) start_model(mp);
@@ -338,6 +363,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     s["grid"] = r.plan.grid_name;
     s["file"] = model["file"];
     s["iterations"] = r.iterations;
+    if (r.warm_start) s["warm_start"] = true;
     if (r.photons > 0) s["photons"] = r.photons;
     if (r.plan.derived) s["derived"] = "sum of B01..B18 (docs/model.md sec. 4); iterations: the largest of theirs";
     s["seconds"] = r.seconds;
@@ -355,6 +381,9 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     if (plan_.scene->output.half) s["half_error_max"] = half_error_[order[k]];
     model["solutions"].push_back(s);
   }
+  if (const ModelExtras* extras = extras_for(mp)) model.update(extras->manifest);
+  extras_model_ = nullptr;
+  extras_ = {};
   model_ = nullptr;
   done_.clear();
   encoded_.clear();

@@ -36,13 +36,31 @@ struct BakeRunInfo {
   nlohmann::json unit;
 };
 
+// What a caller adds to one model's output besides the bake's own (a gas frame's temperature,
+// velocity and frame number): grids on the model's lattice frame, written after its density;
+// members of the .vdb's file metadata; members of its manifest entry.
+struct ModelExtras {
+  struct Grid {
+    std::string name;
+    std::vector<float> scalar;              // a float grid, or (empty) ...
+    std::array<std::vector<float>, 3> rgb;  // ... a Vec3f grid
+    nlohmann::json metadata = nlohmann::json::object();
+  };
+  std::vector<Grid> grids;
+  nlohmann::json file_metadata = nlohmann::json::object();
+  nlohmann::json manifest = nlohmann::json::object();
+};
+
 class BakeOutput {
  public:
-  // write_in_background: run the output work on a thread of its own (GPU backends).
+  // write_in_background: run the output work on a thread of its own (GPU backends). kind: what
+  // the folder is (a lit gas sequence is a Simulation that also holds a manifest).
   BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
-             bool write_in_background = false);
+             bool write_in_background = false, OutputKind kind = OutputKind::Bake);
   ~BakeOutput();
 
+  // Before the model's first solution; kept until its finish_model.
+  void set_extras(const ModelPlan& model, ModelExtras extras);
   void add(const ModelPlan& model, SolutionResult& result);  // takes the totals
   void set_peak_bytes(const ModelPlan& model, std::size_t bytes);
   void finish_model(const ModelPlan& model);                 // completes <model>.vdb and .lbh
@@ -50,12 +68,15 @@ class BakeOutput {
   nlohmann::json commit(double total_seconds);
 
   const std::filesystem::path& target() const { return dir_.target(); }
+  // A file of the output, to write before commit (it appears with the rest).
+  std::filesystem::path path(const std::string& name) const { return dir_.path(name); }
   // Per solution rows for the summary table, in bake order.
   const nlohmann::json& models() const { return models_; }
 
  private:
   void start_model(const ModelPlan& model);
   std::size_t solutions_expected(const ModelPlan& model) const;
+  const ModelExtras* extras_for(const ModelPlan& model) const;
   int grids_per_solution() const { return info_.reference.is_null() ? 1 : 2; }
 
   const BakePlan& plan_;
@@ -63,6 +84,8 @@ class BakeOutput {
   BakeRunInfo info_;
   // Per model, while it is being baked. Declared before worker_: the worker stops first.
   const ModelPlan* model_ = nullptr;
+  const ModelPlan* extras_model_ = nullptr;  // the model extras_ belong to
+  ModelExtras extras_;
   std::vector<SolutionResult> done_;   // manifest rows (totals handed to the worker)
   std::vector<LbhEncoded> encoded_;    // slot i: done_[i], filled by the worker
   std::vector<std::uint8_t> keep_;     // nodes whose light is written (empty: all of them)

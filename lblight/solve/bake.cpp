@@ -36,9 +36,16 @@ struct BatchOutcome {
 
 class BatchRunner {
  public:
+  // warm: the systems start from a previous solve's state, so no minimum step count applies
+  // (BakeOptions::warm).
   BatchRunner(const ModelPlan& mp, LatticeSolver& solver, const RunContext& ctx, BakeObserver& observer,
-              std::vector<const SolutionPlan*> solutions, std::size_t systems)
-      : mp_(mp), solver_(solver), ctx_(ctx), observer_(observer), solutions_(std::move(solutions)) {
+              std::vector<const SolutionPlan*> solutions, std::size_t systems, bool warm)
+      : mp_(mp),
+        solver_(solver),
+        ctx_(ctx),
+        observer_(observer),
+        solutions_(std::move(solutions)),
+        min_steps_(warm ? 0 : mp.steps.min_steps) {
     out_.monitors.assign(systems, ConvergenceMonitor(mp.steps.precision, 1.0 - mp.steps.decay_hint));
     reset_latches();
     t0_ = Clock::now();
@@ -55,7 +62,7 @@ class BatchRunner {
       int chunk = pol.check_interval;
       if (fixed && out_.steps == 0 && total % pol.check_interval != 0) chunk = total % pol.check_interval;
       chunk = std::min(chunk, total - out_.steps);
-      if (check(chunk, total) && !fixed && out_.steps >= pol.min_steps) {
+      if (check(chunk, total) && !fixed && out_.steps >= min_steps_) {
         out_.converged = true;
         break;
       }
@@ -159,7 +166,7 @@ class BatchRunner {
   // DSA: whether the last cycles (after light has crossed the lattice) shrink the error faster
   // per second than plain steps would, at the plan's slowest plain decay per step.
   bool pays(double cycle_seconds, double step_seconds) const {
-    if (out_.steps < mp_.steps.min_steps) return true;
+    if (out_.steps < min_steps_) return true;
     double worst = 0;
     for (const ConvergenceMonitor& mon : out_.monitors) {
       const auto& h = mon.history();
@@ -220,7 +227,7 @@ class BatchRunner {
       const CheckPoint& cp = out_.monitors[s].history().back();
       if (s == 0 || cp.error_estimate > worst_point.error_estimate || std::isnan(cp.error_estimate)) worst_point = cp;
       const double e = out_.monitors[s].error_estimate(), em = out_.monitors[s].error_estimate_max();
-      if ((accelerated || out_.steps >= mp_.steps.min_steps) && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
+      if ((accelerated || out_.steps >= min_steps_) && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
         out_.latched[s] = std::min(out_.latched[s], e);
         out_.latched_max[s] = std::min(out_.latched_max[s], em);
       }
@@ -242,6 +249,7 @@ class BatchRunner {
   const RunContext& ctx_;
   BakeObserver& observer_;
   std::vector<const SolutionPlan*> solutions_;
+  int min_steps_;
   BatchOutcome out_;
   std::vector<Residual> residuals_;
   Clock::time_point t0_;
@@ -388,8 +396,9 @@ std::size_t batch_end(const std::vector<SystemRef>& queue, std::size_t start, in
 
 // Adds system s of a finished batch (its channel's totals, estimate and time share) to its solution.
 void add_channel(PartialSolution& p, const BatchOutcome& outcome, std::size_t s, double seconds,
-                 std::vector<float> totals, int channel) {
+                 std::vector<float> totals, int channel, bool warm) {
   SolutionResult& r = p.result;
+  r.warm_start = warm;
   p.per_channel[static_cast<std::size_t>(channel)] = std::move(totals);
   ++p.channels_done;
   r.iterations = std::max(r.iterations, outcome.steps);
@@ -402,6 +411,35 @@ void add_channel(PartialSolution& p, const BatchOutcome& outcome, std::size_t s,
   r.error_estimate_max =
       std::max(r.error_estimate_max, std::min(outcome.monitors[s].error_estimate_max(), outcome.latched_max[s]));
   r.converged = r.converged && outcome.converged;
+}
+
+StateAccess* state_access_for_warm_start(LatticeSolver& solver, const Backend& backend) {
+  StateAccess* state = solver.state_access();
+  if (!state)
+    throw Error(ErrorCategory::Unavailable, "warm starts: the " + backend.name() +
+                                                " backend offers no state access; start every frame from zero");
+  return state;
+}
+
+// The batch's systems (queue entries first..first+count) set to their kept states, then measured
+// once: the first check's change is then against the warm totals, not against zero.
+void start_warm(LatticeSolver& solver, StateAccess& state, const WarmStart& warm, std::size_t first, std::size_t count,
+                std::vector<double>& buffer) {
+  for (std::size_t s = 0; s < count; ++s) {
+    const std::vector<float>& kept = warm.states[first + s];
+    buffer.assign(kept.begin(), kept.end());
+    state.write_state(static_cast<int>(s), buffer);
+  }
+  std::vector<Residual> baseline;
+  solver.measure(baseline);
+}
+
+void keep_states(const StateAccess& state, WarmStart& warm, std::size_t first, std::size_t count,
+                 std::vector<double>& buffer) {
+  for (std::size_t s = 0; s < count; ++s) {
+    state.read_state(static_cast<int>(s), buffer);
+    warm.states[first + s].assign(buffer.begin(), buffer.end());
+  }
 }
 
 }  // namespace
@@ -493,6 +531,17 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   observer.model_started(mp, backend, solver->bytes_in_use());
 
   const std::vector<SystemRef> queue = system_queue(mp);
+  StateAccess* warm_state =
+      opt.warm && mp.steps.mode == IterationMode::Auto ? state_access_for_warm_start(*solver, backend) : nullptr;
+  // States of another lattice (or plan) cannot start this one: its systems start from zero.
+  const bool warm_now = warm_state && opt.warm->dims == mp.lattice.dims && opt.warm->states.size() == queue.size() &&
+                        std::none_of(opt.warm->states.begin(), opt.warm->states.end(),
+                                     [](const std::vector<float>& f) { return f.empty(); });
+  if (warm_state && !warm_now) {
+    opt.warm->dims = mp.lattice.dims;
+    opt.warm->states.assign(queue.size(), {});
+  }
+  std::vector<double> state_buffer;
   const int channels = static_cast<int>(mp.channels.size());
   const bool fixed = mp.steps.mode != IterationMode::Auto;
   AmbientSum ambient(mp, /*wanted=*/!subset);
@@ -519,7 +568,8 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     }
 
     solver->reset(batch);
-    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size());
+    if (warm_now) start_warm(*solver, *warm_state, *opt.warm, start, batch.size(), state_buffer);
+    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size(), warm_now);
     std::vector<DiffusionCorrection*> batch_corrections;
     for (const SystemSpec& spec : batch)
       if (!corrections.empty()) batch_corrections.push_back(corrections[static_cast<std::size_t>(spec.channel)].get());
@@ -528,6 +578,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
                                                                            : runner.plain();
     const double batch_seconds = runner.seconds();
     observer.memory_in_use(mp, solver->bytes_in_use());
+    if (warm_state) keep_states(*warm_state, *opt.warm, start, batch.size(), state_buffer);
 
     // Collect each system's totals; a solution is done once all its channels are.
     for (std::size_t s = 0; s < batch.size(); ++s) {
@@ -535,7 +586,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       std::vector<float> totals(mp.lattice.dims.count());
       solver->read_totals(static_cast<int>(s), totals.data());
       add_channel(p, outcome, s, batch_seconds / static_cast<double>(batch.size()), std::move(totals),
-                  batch[s].channel);
+                  batch[s].channel, warm_now);
       if (p.channels_done < channels) continue;
       SolutionResult r = std::move(p.result);
       r.converged = !fixed && r.converged;

@@ -20,6 +20,7 @@ struct SolutionResult {
   double error_estimate = 0;   // relative L2, the worst channel (inf = not estimable)
   double error_estimate_max = 0;  // relative max norm, the worst channel
   bool converged = false;      // Auto: reached the tolerance; Fixed/Paper: not applicable (false)
+  bool warm_start = false;     // started from a previous solve's state (BakeOptions::warm)
   int krylov_iterations = 0;   // BiCGStab iterations (method bicgstab)
   double krylov_residual = 0;  // its final relative residual
   std::vector<CheckPoint> history;                    // worst channel at every check
@@ -60,6 +61,15 @@ class BakeObserver {
   virtual void inspect(const BakeProgress&, LatticeSolver&, bool /*measured*/) {}
 };
 
+// The final states of a model's systems, carried from one bake_model call to the next on the same
+// lattice box (a gas sequence's frames, docs/fluid.md): each system then starts where the previous
+// call's stopped instead of from zero. Floats: a starting point needs no more, since the iteration
+// converges to its own fixed point from any start (float64 bakes start from the rounded state).
+struct WarmStart {
+  Dims dims;                                // the lattice the states belong to
+  std::vector<std::vector<float>> states;   // per system in bake order: 19 x dims.count(), direction-major
+};
+
 struct BakeOptions {
   int max_systems = 0;  // per batch; 0 = as memory allows
   // Only these base solutions (indices 0..18, none derived): a work unit's share of the model
@@ -67,6 +77,11 @@ struct BakeOptions {
   // a batch runs until its slowest system is done), so each comes out exactly as in a bake of the
   // whole model; a B00 summed from B01..B18 is then left to whoever has all of them. Empty: all.
   std::vector<int> solutions;
+  // Iterations "auto" only: start every system from warm->states when they are of this lattice
+  // and this many systems (else from zero), and leave each system's final state there. Needs the
+  // backend's StateAccess (Error(Unavailable) otherwise). A warm start has no minimum step count:
+  // docs/fluid.md, "Warm starts", says why the convergence estimate alone is an honest stop then.
+  WarmStart* warm = nullptr;
 };
 
 // Systems per batch for `model` on `backend`: the backend's preference (or options.max_systems),

@@ -392,10 +392,26 @@ std::vector<std::string> lattice_names(const Scene& scene) {
   return names;
 }
 
-BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
+BakePlan plan_without_models(const Scene& scene, const PlanOverrides& ov) {
   BakePlan plan;
   plan.scene = &scene;
   plan.precision = ov.precision.value_or(scene.solver.precision);
+  return plan;
+}
+
+ModelPlan plan_model(BakePlan& plan, const ModelSpec& spec, ModelGrid grid, const PlanOverrides& ov) {
+  const Scene& scene = *plan.scene;
+  ModelPlan mp;
+  mp.spec = &spec;
+  plan_lattice(mp, scene, std::move(grid), plan.warnings, spec.ground);
+  plan_channels(mp, scene.solver.model);
+  plan_solutions(mp, scene, ov);
+  plan_steps(mp, scene, ov, plan.precision);
+  return mp;
+}
+
+BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
+  BakePlan plan = plan_without_models(scene, ov);
   // A scene model as the only lattice needs its own grid; a coarse forest lattice every model's.
   bool only_model = false;
   if (ov.only) {
@@ -412,13 +428,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
   plan.models.reserve(scene.models.size());
   for (const ModelSpec& spec : scene.models) {
     if (only_model && spec.name != *ov.only) continue;
-    ModelPlan mp;
-    mp.spec = &spec;
-    plan_lattice(mp, scene, load_model_grid(spec, scene, ctx), plan.warnings, spec.ground);
-    plan_channels(mp, scene.solver.model);
-    plan_solutions(mp, scene, ov);
-    plan_steps(mp, scene, ov, plan.precision);
-    plan.models.push_back(std::move(mp));
+    plan.models.push_back(plan_model(plan, spec, load_model_grid(spec, scene, ctx), ov));
   }
   // A model unit of a forest with coarse lattices leaves the forest (its cell size needs every
   // grid) to the forest units.

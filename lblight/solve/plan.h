@@ -138,6 +138,15 @@ struct BakePlan {
 // voxelising stop with Error(Cancelled) once ctx.cancel is set.
 BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {}, const RunContext& ctx = {});
 
+// The plan's scene and precision, no models yet: make_plan's start, and the frame plans of a gas
+// sequence (pipeline/gas_frames.h), which plan_model adds to one frame at a time.
+BakePlan plan_without_models(const Scene& scene, const PlanOverrides& overrides = {});
+
+// What make_plan does with each model's loaded grid, for a grid the caller made: checked, cropped
+// when spec.crop, grown into its lattice, with its channels, solutions and step policy. Warnings go
+// to plan.warnings; the result is not added to plan.models.
+ModelPlan plan_model(BakePlan& plan, const ModelSpec& spec, ModelGrid grid, const PlanOverrides& overrides = {});
+
 // The grid cut to the box of its occupied nodes (unchanged when empty or already tight). Index
 // coordinates and the transform are kept, so the interior of the smaller lattice sees exactly the
 // boundary light it saw before: outside the occupied box light only streams.
