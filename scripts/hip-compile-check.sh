@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Compiles the GPU backend and the .lbh reader's device example as HIP (compile only: AMD's
-# gfx90a, no GPU needed), proving the kernel source is written once for CUDA and HIP. Exit 77
+# Compiles the GPU backend, the .lbh reader's device example and the gas solver's node update in
+# kernels as HIP (compile only: AMD's gfx90a, no GPU needed), proving the kernel source is written
+# once for CUDA and HIP. Exit 77
 # (skipped) when hipcc is not installed.
 #   usage: scripts/hip-compile-check.sh [OUT.o]
 set -euo pipefail
@@ -15,3 +16,6 @@ echo "HIP compile of backends/cuda/cuda_backend.cu for gfx90a: ok ($out)"
 # The .lbh reader's device functions, through its CUDA/HIP example.
 hipcc --offload-arch=gfx90a -x hip -std=c++17 -Werror -Ireaders/lbh -c readers/lbh/cuda_example.cu -o "${out%.o}_lbh_example.o"
 echo "HIP compile of readers/lbh/cuda_example.cu for gfx90a: ok"
+# The gas solver's per-node update (lblight/fluid/gas_node.h) in kernels.
+hipcc --offload-arch=gfx90a -x hip -std=c++17 -Werror -I. -c tests/fluid/gas_kernels_compile.cu -o "${out%.o}_gas.o"
+echo "HIP compile of tests/fluid/gas_kernels_compile.cu for gfx90a: ok"

@@ -13,8 +13,9 @@ packages=(
   clang-14 libclang-rt-14-dev libomp-14-dev  # the sanitizer build and the fuzzers (scripts/sanitize.sh)
 )
 # Optional: Debian's hipcc (~13 s, 66 MB download) lets the tests compile the GPU backend as HIP;
-# blender (~20 s, 75 MB) runs the add-on test (tools/blender) headless.
-optional=(hipcc blender)
+# blender (~20 s, 75 MB) runs the add-on test (tools/blender) headless; slurm-wlm and munge (~4 s,
+# 3.5 MB) let the scale-out test run a one-node Slurm (scripts/local-slurm.sh, docs/scale-out.md).
+optional=(hipcc blender slurm-wlm munge)
 
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 missing=()
@@ -39,5 +40,5 @@ fi
 if ((${#missing_optional[@]})); then
   echo "setup: installing optional ${missing_optional[*]}"
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing_optional[@]}" ||
-    echo "setup: optional packages unavailable; the HIP compile check or the Blender add-on test will be skipped"
+    echo "setup: optional packages unavailable; the HIP compile check, the Blender add-on test or the Slurm test will be skipped"
 fi

@@ -8,6 +8,7 @@
 #include <iostream>
 #include <memory>
 
+#include "apps/lblight/bake_progress.h"
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
@@ -15,6 +16,7 @@
 #include "lblight/core/isolated_call.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/run_bake.h"
+#include "lblight/pipeline/work_units.h"
 
 namespace lblight::cli {
 namespace {
@@ -22,77 +24,34 @@ namespace {
 struct BakeArgs {
   SolveOptions solve;
   std::string output;
+  std::string only;     // one work unit: a partial output (docs/scale-out.md)
+  bool resume = false;  // skip units whose partial is finished
 };
 
-// Progress on stderr: one line per solution, and a heartbeat every few seconds on long ones.
-class ProgressLog final : public BakeObserver {
- public:
-  explicit ProgressLog(std::size_t total) : total_(total) {}
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
 
-  void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) override {
-    const Dims& d = mp.lattice.dims;
-    spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice)",
-                 mp.spec->name, d.nx, d.ny, d.nz, mp.solutions.size(), mp.channels.size(), backend.name(),
-                 format_bytes(static_cast<double>(bytes)));
-    if (!mp.steps.method_note.empty()) spdlog::info("model '{}': {}", mp.spec->name, mp.steps.method_note);
-    last_beat_ = std::chrono::steady_clock::now();
+// --resume: whether `dir` holds the finished partial of `unit` (unit_record); logs either way.
+bool unit_done(const nlohmann::json& unit, const std::filesystem::path& dir) {
+  const std::string name = unit["name"], hash = unit["hash"];
+  const PartCheck c = check_part(dir, name, hash, /*verify_checksums=*/true);
+  if (c.state == PartState::Done) {
+    spdlog::info("unit '{}': finished in {} (inputs hash {}), not recomputed", name, dir.string(), hash);
+    return true;
   }
-
-  void progress(const BakeProgress& ev) override {
-    const auto now = std::chrono::steady_clock::now();
-    if (std::chrono::duration<double>(now - last_beat_).count() < 3.0) return;
-    last_beat_ = now;
-    std::string names;
-    for (const SolutionPlan* s : ev.batch) names += (names.empty() ? "" : ",") + s->grid_name;
-    spdlog::info("  [{}] {}: step {}/{}{}, est. error {}, {} s", ev.model->spec->name, names, ev.step,
-                 ev.planned_steps, ev.model->steps.mode == IterationMode::Auto ? " max" : "",
-                 format_error(ev.error_estimate), format_seconds(ev.seconds));
-  }
-
-  void solution_done(const ModelPlan& mp, SolutionResult& r) override {
-    ++done_;
-    const bool auto_mode = mp.steps.mode == IterationMode::Auto;
-    spdlog::info("[{}/{}] {} {} {}: {} steps, {} s, est. error {}{}", done_, total_, mp.spec->name, r.plan.grid_name,
-                 format_direction(r.plan.direction), r.iterations, format_seconds(r.seconds),
-                 format_error(r.error_estimate),
-                 auto_mode ? (r.converged ? " (converged)" : " (NOT converged: raise max_iterations)") : "");
-    if (auto_mode && !r.converged)
-      spdlog::warn("{} {}: stopped at max_iterations {} with est. error {} above tolerance {}", mp.spec->name,
-                   r.plan.grid_name, r.iterations, format_error(r.error_estimate), mp.steps.tolerance);
-    // Summary rows in model and index order (a B00 summed from the others arrives last).
-    if (models_.empty() || models_.back() != &mp) models_.push_back(&mp);
-    rows_.push_back({models_.size(), r.plan.index,
-                     {mp.spec->name, r.plan.grid_name, format_direction(r.plan.direction),
-                      r.plan.derived ? "sum" : std::to_string(r.iterations), format_seconds(r.seconds),
-                      format_error(r.error_estimate)}});
-  }
-
-  std::vector<std::vector<std::string>> rows() const {
-    auto sorted = rows_;
-    std::stable_sort(sorted.begin(), sorted.end(), [](const Row& a, const Row& b) {
-      return a.model != b.model ? a.model < b.model : a.index < b.index;
-    });
-    std::vector<std::vector<std::string>> out;
-    for (const Row& r : sorted) out.push_back(r.cells);
-    return out;
-  }
-
- private:
-  std::size_t total_, done_ = 0;
-  std::chrono::steady_clock::time_point last_beat_;
-  struct Row {
-    std::size_t model;
-    int index;
-    std::vector<std::string> cells;
-  };
-  std::vector<const ModelPlan*> models_;
-  std::vector<Row> rows_;
-};
+  spdlog::info("unit '{}': {}; baking it", name,
+               c.state == PartState::Absent ? "no partial output yet in " + dir.string()
+                                            : dir.string() + " is not its finished partial (" + c.why + ")");
+  return false;
+}
 
 int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   const auto t0 = std::chrono::steady_clock::now();
   const Scene scene = load_scene(args.solve.scene);
-  const PlanOverrides ov = args.solve.overrides();
+  PlanOverrides ov = args.solve.overrides();
+  const UnitSpec only = args.only.empty() ? UnitSpec{} : parse_unit(args.only);
+  if (!only.name.empty()) ov.only = only.name;
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-bake")
                           : std::filesystem::path(args.output));
@@ -106,7 +65,7 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
       const auto guard = hold_forks();  // the driver loads libraries: no .vdb probe forks meanwhile
       return args.solve.make_backend();
     });
-  const BakePlan plan = make_plan(scene, ov, args.solve.run_context());
+  BakePlan plan = make_plan(scene, ov, args.solve.run_context());
   auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
   if (!backend->supports(plan.precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
@@ -117,16 +76,45 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
   std::size_t total = 0;
   for (const ModelPlan& mp : plan.models) total += mp.solutions.size();
-
   ProgressLog log(total);
-  const double before = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  run_bake(plan, *backend, target, global.command_line, log, args.solve.run_context(), before);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const RunContext ctx = args.solve.run_context();
+
+  if (!only.name.empty()) {  // one unit (or some of its solutions): its partial output
+    const nlohmann::json unit = unit_record(plan, plan.models[0], backend->name(), ov, only.solutions);
+    if (args.resume && unit_done(unit, target)) {
+      std::cout << "unit '" << args.only << "' already done in " << target.string() << ": not recomputed\n";
+      return 0;
+    }
+    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0), unit);
+  } else if (args.resume) {
+    // Every unit into <target>.parts (kept until the merge), so that a bake killed mid-way
+    // resumes at the first unfinished unit; then the parts merge into target.
+    const std::filesystem::path parts_dir = target.string() + ".parts";
+    std::filesystem::create_directories(parts_dir);
+    std::vector<std::filesystem::path> parts;
+    std::vector<BakePlan> unit_plans;  // kept: the log holds their models until the summary
+    unit_plans.reserve(plan.models.size());
+    for (std::size_t i = 0; i < plan.models.size(); ++i) {
+      parts.push_back(parts_dir / plan.models[i].spec->name);
+      const nlohmann::json unit = unit_record(plan, plan.models[i], backend->name());
+      if (unit_done(unit, parts.back())) continue;
+      unit_plans.push_back(unit_plan(plan, i));
+      run_bake(unit_plans.back(), *backend, parts.back(), global.command_line, log, ctx, seconds_since(t0), unit);
+    }
+    MergeOptions merge{global.command_line, scene.hash, scene.name, scene.file.string(), lattice_names(scene),
+                       /*move_files=*/true};
+    merge_parts(parts, target, merge, ctx);
+    std::error_code ec;
+    std::filesystem::remove_all(parts_dir, ec);
+    if (ec) spdlog::warn("could not remove {}: {}", parts_dir.string(), ec.message());
+  } else {
+    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0));
+  }
 
   Table table({"model", "solution", "direction", "iterations", "seconds", "error estimate"});
   for (const auto& row : log.rows()) table.add(row);
-  std::cout << table.str() << total << " solution(s) in " << format_seconds(seconds) << " s; output: "
-            << target.string() << "\n";
+  std::cout << table.str() << log.done() << " solution(s) in " << format_seconds(seconds_since(t0))
+            << " s; output: " << target.string() << "\n";
   return 0;
 }
 
@@ -143,6 +131,16 @@ Command add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("-o,--output", args->output, "Output directory (default: <scene name>-bake); replaced if it holds "
                                                 "a previous lblight output")
       ->check(kNonEmpty);
+  cmd->add_option("--only", args->only,
+                  "Bake one work unit, MODEL[:SOLUTIONS]: a model of the scene or a coarse forest lattice (forest, "
+                  "forest.alone.<model>), optionally only some of its solutions (whole batches, e.g. tree:1-6); -o "
+                  "then receives its partial output, which `lblight merge` combines with the others' "
+                  "(docs/scale-out.md)")
+      ->check(kNonEmpty);
+  cmd->add_flag("--resume", args->resume,
+                "Do not recompute finished units: with --only, exit at once when -o holds this unit's finished "
+                "partial (same inputs hash, files intact); without, bake unit by unit into OUTDIR.parts, keeping "
+                "those already there, then merge them into OUTDIR");
   return {cmd, [args, &global] { return run_bake(*args, global); }};
 }
 

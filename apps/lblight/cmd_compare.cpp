@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -18,6 +19,7 @@
 #include "lblight/core/relative_gap.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/pipeline/manifest.h"
+#include "lblight/pipeline/work_units.h"
 
 namespace fs = std::filesystem;
 
@@ -28,6 +30,7 @@ struct CompareArgs {
   std::string reference, other;
   double tolerance = 1e-5;
   std::string metric = "max";
+  bool exact = false;
 };
 
 // The bake output `dir`'s manifest; a folder without one is not an lblight output.
@@ -164,9 +167,70 @@ int compare_outputs(const CompareArgs& a) {
   return ok ? 0 : 1;
 }
 
+std::string file_bytes(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw_io("cannot open", {file.string(), {}, {}});
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Bit for bit (docs/scale-out.md: a merged bake against a one-machine one): the manifests without
+// their run record (run_record_fields), and per model the .vdb's grids (names, order, metadata,
+// active voxels, every value's bits) and the .lbh bytes. Prints each difference; 1 when there is one.
+int compare_exact(const CompareArgs& a) {
+  const fs::path ref_dir = a.reference, other_dir = a.other;
+  const nlohmann::json ref = output_manifest(ref_dir), other = output_manifest(other_dir);
+  int differences = 0, grids = 0, lbh_files = 0;
+  const auto differ = [&](const std::string& what) {
+    if (++differences <= 20) std::printf("differs: %s\n", what.c_str());
+  };
+  const nlohmann::json patch = nlohmann::json::diff(without_run_record(ref), without_run_record(other));
+  for (const auto& op : patch) differ("manifest " + op.value("path", std::string()) + " (" + op.value("op", "") + ")");
+  if (!patch.empty()) {  // the files compared below are those both manifests name alike
+    std::printf("%d difference(s) (manifests differ beyond their run record)\n", differences);
+    return 1;
+  }
+  for (std::size_t mi = 0; mi < ref.at("models").size(); ++mi) {
+    const nlohmann::json& model = ref["models"][mi];
+    const std::string at = "/models/" + std::to_string(mi);
+    const std::string name = model.at("name");
+    if (model.at("file").is_string()) {
+      const fs::path fa = manifest_file(ref_dir, model["file"], at + "/file");
+      const fs::path fb = manifest_file(other_dir, other["models"][mi]["file"], at + "/file");
+      nlohmann::json ia = inspect_vdb(fa), ib = inspect_vdb(fb);
+      for (auto* info : {&ia, &ib}) info->erase("file");
+      if (ia != ib) differ(name + ": .vdb grid list, metadata or active voxels");
+      for (const auto& g : ia.value("grids", nlohmann::json::array())) {
+        const std::string grid = g.value("name", "");
+        const DenseGridIn ga = read_vdb_grid_dense(fa, grid), gb = read_vdb_grid_dense(fb, grid);
+        ++grids;
+        bool same = ga.type == gb.type && ga.frame.dims == gb.frame.dims && ga.frame.index_min == gb.frame.index_min &&
+                    ga.frame.index_to_world == gb.frame.index_to_world;
+        for (std::size_t c = 0; same && c < ga.values.size(); ++c)
+          same = ga.values[c].size() == gb.values[c].size() &&
+                 std::memcmp(ga.values[c].data(), gb.values[c].data(), ga.values[c].size() * sizeof(float)) == 0;
+        if (!same) differ(name + " grid " + grid + ": values or lattice box");
+      }
+    }
+    if (model.value("lbh_file", nlohmann::json()).is_string()) {
+      ++lbh_files;
+      if (file_bytes(manifest_file(ref_dir, model["lbh_file"], at + "/lbh_file")) !=
+          file_bytes(manifest_file(other_dir, other["models"][mi]["lbh_file"], at + "/lbh_file")))
+        differ(name + ": .lbh bytes");
+    }
+  }
+  if (differences > 0) {
+    std::printf("%d difference(s)\n", differences);
+    return 1;
+  }
+  std::printf("identical: %d grid(s) bit for bit, %d .lbh file(s) byte for byte, manifests equal except their run "
+              "record\n",
+              grids, lbh_files);
+  return 0;
+}
+
 int run_compare(const CompareArgs& a) {
   try {
-    return compare_outputs(a);
+    return a.exact ? compare_exact(a) : compare_outputs(a);
   } catch (const nlohmann::json::exception& e) {  // a manifest without the fields a bake writes
     throw_invalid(std::string("manifest.json is not an lblight bake manifest: ") + e.what(),
                   {a.reference + " or " + a.other, {}, {}});
@@ -194,6 +258,11 @@ Command add_compare_command(CLI::App& app, const GlobalOptions&) {
                   "`lblight truth`, docs/truth.md)")
       ->check(CLI::IsMember({"max", "l2"}))
       ->capture_default_str();
+  cmd->add_flag("--exact", args->exact,
+                "Bit for bit instead (a merged bake against a one-machine one, docs/scale-out.md): every grid of "
+                "every model (names, order, metadata, active voxels, values), the .lbh files byte for byte and the "
+                "manifests except their run record (created, command, total_seconds, backend.description, "
+                "peak_memory_bytes, seconds, residual_history times, encode_seconds); exit 1 on any difference");
   return {cmd, [args] { return run_compare(*args); }};
 }
 

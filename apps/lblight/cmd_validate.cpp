@@ -93,6 +93,10 @@ int run_validate(const ValidateArgs& args) {
     std::string sols;
     for (const SolutionPlan& s : mp.solutions) sols += (sols.empty() ? "" : " ") + s.grid_name;
     text << "model '" << mp.spec->name << "': " << mp.grid.description << "\n";
+    // A gas source's grid (and so its lattice) is the smoke of one frame: there is no plan without it.
+    if (mp.spec->density.type == SourceType::Gas)
+      text << "  (validate ran the gas simulation up to this frame to plan it; `lblight simulate` writes every frame, "
+              "with --light lit)\n";
     text << "  density grid " << gd.nx << "x" << gd.ny << "x" << gd.nz << ", voxel size " << mp.grid.voxel_size()[0]
          << "; lattice " << ld.nx << "x" << ld.ny << "x" << ld.nz << " (margin " << mp.spec->margin << "), "
          << mp.stats.occupied << " occupied nodes, " << mp.stats.wood << " wood\n";

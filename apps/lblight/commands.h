@@ -35,5 +35,8 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global);
 Command add_sun_weights_command(CLI::App& app, const GlobalOptions& global);
 Command add_schema_command(CLI::App& app, const GlobalOptions& global);
 Command add_simulate_command(CLI::App& app, const GlobalOptions& global);
+Command add_merge_command(CLI::App& app, const GlobalOptions& global);
+Command add_submit_command(CLI::App& app, const GlobalOptions& global);
+Command add_status_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace lblight::cli

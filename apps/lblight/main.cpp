@@ -46,6 +46,9 @@ int main(int argc, char** argv) {
       cli::add_sun_weights_command(app, global),
       cli::add_schema_command(app, global),
       cli::add_simulate_command(app, global),
+      cli::add_merge_command(app, global),
+      cli::add_submit_command(app, global),
+      cli::add_status_command(app, global),
   };
 
   // The first word that is not a flag names the command (the global flags take no values); CLI11

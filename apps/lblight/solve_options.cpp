@@ -2,13 +2,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cstdio>
+
 #include "apps/lblight/cli_support.h"
 #include "lblight/core/error.h"
 
 namespace lblight::cli {
 
 void SolveOptions::add_to(CLI::App& cmd) {
-  cmd.add_option("scene", scene, "Scene file (JSON, format v1: docs/scene-format.md)")->required();
+  add_plan_options(cmd);
   cmd.add_option("--backend", backend,
                  "Compute backend: auto (GPU when one is usable, else CPU), cpu (OpenMP), cuda")
       ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
@@ -17,6 +19,10 @@ void SolveOptions::add_to(CLI::App& cmd) {
       ->check(CLI::Range(0, 4096))
       ->capture_default_str();
   cmd.add_option("--device", device, "GPU ordinal for --backend cuda")->check(CLI::Range(0, 64))->capture_default_str();
+}
+
+void SolveOptions::add_plan_options(CLI::App& cmd) {
+  cmd.add_option("scene", scene, "Scene file (JSON, format v1: docs/scene-format.md)")->required();
   cmd.add_option("--solutions", solutions,
                  "Base solutions to bake: 'all' or indices/ranges such as 0,1,5-7 (default: the scene's)")
       ->check(kNonEmpty);
@@ -50,6 +56,23 @@ PlanOverrides SolveOptions::overrides() const {
   if (!precision.empty()) ov.precision = parse_precision(precision);
   if (!method.empty()) ov.method = parse_solver_method(method).value_or(SolverMethod::Plain);
   return ov;
+}
+
+std::vector<std::string> SolveOptions::plan_arguments() const {
+  std::vector<std::string> args;
+  const auto pass = [&](const char* flag, const std::string& value) {
+    if (!value.empty()) args.insert(args.end(), {flag, value});
+  };
+  pass("--solutions", solutions);
+  pass("--iterations", iterations);
+  if (tolerance > 0) {
+    char exact[32];  // every digit: the units' plans must be this plan
+    std::snprintf(exact, sizeof exact, "%.17g", tolerance);
+    pass("--tolerance", exact);
+  }
+  pass("--precision", precision);
+  pass("--method", method);
+  return args;
 }
 
 RunContext SolveOptions::run_context() const {

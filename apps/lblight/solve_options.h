@@ -3,6 +3,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "backends/registry.h"
 #include "lblight/solve/plan.h"
@@ -25,7 +26,12 @@ struct SolveOptions {
   std::string method;      // empty = the scene's
 
   void add_to(CLI::App& cmd);
+  // The scene and what changes its plan (--solutions, --iterations, --tolerance, --method,
+  // --precision), without the backend's options: add_to adds both.
+  void add_plan_options(CLI::App& cmd);
   PlanOverrides overrides() const;
+  // The plan options given, as arguments to pass on to another lblight command.
+  std::vector<std::string> plan_arguments() const;
   // Cancelled by the CLI's signal handlers; host threads from --threads.
   RunContext run_context() const;
   std::unique_ptr<Backend> make_backend() const;

@@ -230,19 +230,31 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   KrylovVectors* krylov_vectors() override { return this; }
   StateAccess* state_access() override { return this; }
 
+  // Row by row per direction: f_m of row (y, z) is the row of g_m shifted by -c_m, a contiguous
+  // copy (a warm start reads and writes a whole state per system and frame, docs/fluid.md). Each
+  // value has one writer: any thread count gives the same state.
   void read_state(int system, std::vector<double>& f) const override {
     const Slot& slot = slots_.at(static_cast<std::size_t>(system));
     f.assign(kQ * n_, 0.0);
     const Real* g = slot.buffer(cur_);
-    for (int z = 0; z < d_.nz; ++z)
-      for (int y = 0; y < d_.ny; ++y)
-        for (int x = 0; x < d_.nx; ++x) {
-          const std::size_t i = d_.index(x, y, z);
-          Real fi[kQ] = {};
-          const bool boundary = d_.is_boundary(x, y, z);
-          if (!boundary && now_ > 0) gather(g, state_index(x, y, z), fi);
-          for (int m = 0; m < kQ; ++m) f[m * n_ + i] = boundary ? slot.spec.boundary[m] : static_cast<double>(fi[m]);
+    const int nx = d_.nx;
+#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+    for (int m = 0; m < kQ; ++m)
+      for (int z = 0; z < d_.nz; ++z) {
+        const double b = slot.spec.boundary[m];
+        const long long shift = d3q19::cx(m) + d3q19::cy(m) * pitch_ + d3q19::cz(m) * plane_;
+        for (int y = 0; y < d_.ny; ++y) {
+          double* out = f.data() + static_cast<std::size_t>(m) * n_ + d_.index(0, y, z);
+          if (z == 0 || z == d_.nz - 1 || y == 0 || y == d_.ny - 1) {
+            std::fill(out, out + nx, b);
+            continue;
+          }
+          out[0] = out[nx - 1] = b;
+          if (now_ == 0) continue;  // the interior is 0 before the first step
+          const Real* src = g + static_cast<std::size_t>(m) * stride_ + (state_index(0, y, z) - shift);
+          for (int x = 1; x < nx - 1; ++x) out[x] = static_cast<double>(src[x]);
         }
+      }
   }
 
   // Stores f as the current state: g_m(q - c_m) = f_m(q) wherever q - c_m is interior. Entries
@@ -252,15 +264,20 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
     if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
     Real* g = slot.buffer(cur_);
-    for (int z = 1; z < d_.nz - 1; ++z)
-      for (int y = 1; y < d_.ny - 1; ++y)
-        for (int x = 1; x < d_.nx - 1; ++x)
-          for (int m = 0; m < kQ; ++m) {
-            const int px = x - d3q19::cx(m), py = y - d3q19::cy(m), pz = z - d3q19::cz(m);
-            if (d_.is_boundary(px, py, pz)) continue;
-            g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(px, py, pz))] =
-                static_cast<Real>(f[m * n_ + d_.index(x, y, z)]);
-          }
+#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+    for (int m = 0; m < kQ; ++m)
+      for (int z = 1; z < d_.nz - 1; ++z) {
+        const int cx = d3q19::cx(m), cy = d3q19::cy(m), cz = d3q19::cz(m);
+        if (z - cz < 1 || z - cz > d_.nz - 2) continue;  // the source row is the boundary's
+        // x whose source x - cx is interior
+        const int x0 = std::max(1, 1 + cx), x1 = std::min(d_.nx - 2, d_.nx - 2 + cx);
+        for (int y = 1; y < d_.ny - 1; ++y) {
+          if (y - cy < 1 || y - cy > d_.ny - 2) continue;
+          const double* in = f.data() + static_cast<std::size_t>(m) * n_ + d_.index(0, y, z);
+          Real* dst = g + static_cast<std::size_t>(m) * stride_ + state_index(-cx, y - cy, z - cz);
+          for (int x = x0; x <= x1; ++x) dst[x] = static_cast<Real>(in[x]);
+        }
+      }
   }
 
   // In place: f_m(q) is g_m(q - c_m), and each (m, q) owns its entry, so rows run in parallel.

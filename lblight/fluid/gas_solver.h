@@ -1,7 +1,8 @@
 // The gas solver ([Wei2004] secs. 3-5, docs/fluid.md): D3Q19 BGK flow on a box of nodes with
 // obstacles (bounce-back), box faces that are periodic, walls or open outlets, a velocity inlet
 // patch on the floor, a body force, and the buoyancy of temperature, which two D3Q7 lattices
-// advect and diffuse with smoke. CPU loop (OpenMP); the node rules are fluid/bgk.h.
+// advect and diffuse with smoke. CPU loop (OpenMP) around the per-node update of fluid/gas_node.h
+// (node rules: fluid/bgk.h).
 #pragma once
 
 #include <array>
@@ -11,11 +12,10 @@
 #include <utility>
 #include <vector>
 
+#include "lblight/fluid/gas_node.h"
 #include "lblight/lattice/lattice.h"
 
 namespace lblight::fluid {
-
-enum class FaceType { Periodic, Wall, Open };
 
 // DRAM bytes one node update moves (for `lblight bench --gas`): the collision reads 19 + 7 + 7
 // floats and writes as many post-collision values plus 6 doubles (rho, u, temperature, smoke);
@@ -55,6 +55,11 @@ struct GasSettings {
 // Returns an empty string when the settings are fine, else what is wrong and what is allowed.
 std::string check_gas_settings(const GasSettings& settings);
 
+// The settings part of the node functions' view (sizes, relaxation, forces, faces, obstacles,
+// inlet); the caller adds its arrays. It points into `settings` (an empty obstacle mask: none, so
+// give GasSolver's own settings() or a mask of every node).
+GasView settings_view(const GasSettings& settings);
+
 class GasSolver {
  public:
   // Error(InvalidInput) with check_gas_settings' message when the settings are refused. Starts
@@ -81,8 +86,9 @@ class GasSolver {
   const GasSettings& settings() const { return s_; }
 
  private:
+  GasView view();  // this solver's arrays and settings, for the node functions
   template <int Q>
-  void stream(const std::vector<float>& post, std::vector<float>& next, int kind) const;
+  void stream(GasLattice lattice, const float* post, float* next);
   void collide_all();
   double scalar(const std::vector<float>& g, std::size_t i) const;
 
@@ -91,9 +97,7 @@ class GasSolver {
   std::vector<float> f_, f_post_, t_, t_post_, c_, c_post_;  // [m * n + node]
   std::vector<double> rho_, ux_, uy_, uz_, temp_, smoke_;  // per node, as of the last collision
   long long steps_ = 0;
-  bool any_solid_ = false;
   int threads_ = 1;
-  std::array<std::ptrdiff_t, 19> offset_{};  // node index of x + e_m minus that of x
 };
 
 }  // namespace lblight::fluid

@@ -54,9 +54,9 @@ struct KindRules {
 
 KindRules rules(OutputKind kind) {
   if (kind == OutputKind::Bake)
-    return {"manifest.json", {"lblight_version", "models"}, {".vdb", ".lbh"}, "an lblight bake output"};
+    return {"manifest.json", {"lblight_version", "models"}, {".vdb", ".lbh", ".totals"}, "an lblight bake output"};
   if (kind == OutputKind::Simulation)
-    return {"simulation.json", {"lblight_version", "frames"}, {".vdb"}, "an lblight simulation"};
+    return {"simulation.json", {"lblight_version", "frames"}, {".vdb", ".lbh", "manifest.json"}, "an lblight simulation"};
   return {"report.json", {"curves", "references"}, {"report.csv", ".svg"}, "an lblight report"};
 }
 

@@ -11,9 +11,10 @@ namespace lblight {
 
 // What a command writes into its output directory, so that a later run replaces only that.
 enum class OutputKind {
-  Bake,    // manifest.json (lblight_version, models) and .vdb/.lbh files
+  Bake,    // manifest.json (lblight_version, models) and .vdb/.lbh files (.totals: a unit's share)
   Report,  // report.json (curves, references), report.csv and .svg plots
-  Simulation,  // simulation.json (lblight_version, frames) and one .vdb per model and frame
+  Simulation,  // simulation.json (lblight_version, frames), one .vdb per model and frame, and the
+               // manifest.json (and .lbh files) of their lighting (simulate --light)
 };
 
 // The output folder a user named, as lblight uses it: lexically normal, without a trailing

@@ -1,15 +1,18 @@
 #include "lblight/pipeline/bake_output.h"
 
 #include "lblight/pipeline/relight.h"
+#include "lblight/pipeline/work_units.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <ctime>
+#include <fstream>
 
 #include <spdlog/spdlog.h>
 
 #include "lblight/compress/lbh_writer.h"
+#include "lblight/core/input_file.h"
+#include "lblight/core/system_info.h"
 #include "lblight/core/version.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/ground.h"
@@ -18,16 +21,31 @@ namespace lblight {
 
 namespace {
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-
-std::string utc_now() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 }  // namespace
+
+void write_raw_totals(const std::filesystem::path& file, const std::array<std::vector<float>, 3>& totals) {
+  std::ofstream out(file, std::ios::binary);
+  for (const std::vector<float>& c : totals)
+    out.write(reinterpret_cast<const char*>(c.data()), static_cast<std::streamsize>(c.size() * sizeof(float)));
+  out.flush();
+  if (!out) throw_io("cannot write the totals (disk full?)", {file.string(), {}, {}});
+}
+
+std::array<std::vector<float>, 3> read_raw_totals(const std::filesystem::path& file, std::size_t nodes) {
+  const std::uint64_t bytes = check_regular_file(file, "unit totals file");
+  if (bytes != 3 * nodes * sizeof(float))
+    throw_invalid("holds " + std::to_string(bytes) + " bytes, not the " + std::to_string(3 * nodes * sizeof(float)) +
+                      " of 3 x " + std::to_string(nodes) + " lattice nodes",
+                  {file.string(), {}, {}});
+  std::ifstream in(file, std::ios::binary);
+  std::array<std::vector<float>, 3> totals;
+  for (std::vector<float>& c : totals) {
+    c.resize(nodes);
+    in.read(reinterpret_cast<char*>(c.data()), static_cast<std::streamsize>(nodes * sizeof(float)));
+  }
+  if (!in) throw_io("cannot read", {file.string(), {}, {}});
+  return totals;
+}
 
 nlohmann::json material_json(const Material& m) {
   nlohmann::json j;
@@ -85,8 +103,14 @@ nlohmann::json savings_json(const ModelPlan& mp) {
 }
 
 BakeOutput::BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
-                       bool write_in_background)
-    : plan_(plan), dir_(target, OutputKind::Bake), info_(std::move(info)), worker_(write_in_background) {}
+                       bool write_in_background, OutputKind kind)
+    : plan_(plan), dir_(target, kind), info_(std::move(info)), worker_(write_in_background) {
+  if (info_.unit.is_object() && info_.unit.contains("solutions")) unit_solutions_ = info_.unit["solutions"].size();
+}
+
+std::size_t BakeOutput::solutions_expected(const ModelPlan& mp) const {
+  return unit_solutions_ ? unit_solutions_ : mp.solutions.size();
+}
 
 BakeOutput::~BakeOutput() = default;
 
@@ -128,6 +152,10 @@ nlohmann::json lattice_box_json(const ModelPlan& mp) {
 DenseFrame dense_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 DenseFrame lbh_frame(const ModelPlan& mp) { return {mp.lattice.dims, mp.lattice_index_min, mp.grid.index_to_world}; }
 constexpr int kBackgroundParallelGrids = 4;
+nlohmann::json merged(nlohmann::json a, const nlohmann::json& b) {
+  a.update(b);
+  return a;
+}
 double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -137,8 +165,8 @@ double since(std::chrono::steady_clock::time_point t0) {
 void BakeOutput::start_model(const ModelPlan& mp) {
   model_ = &mp;
   done_.clear();
-  encoded_.assign(mp.solutions.size(), LbhEncoded{});
-  half_error_.assign(mp.solutions.size(), 0.0);
+  encoded_.assign(solutions_expected(mp), LbhEncoded{});
+  half_error_.assign(solutions_expected(mp), 0.0);
   output_seconds_ = 0;
   // A scene model's light is written on its occupied nodes and their 26 neighbours only (what a
   // renderer interpolates between), never the boundary layer's source values; the coarse forest
@@ -154,9 +182,12 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   // In the background, up to 4 grids compress at once (Blosc is serial per grid and would
   // otherwise fall behind a GPU); inline, the OpenMP solver needs the cores back after each grid.
   const int parallel_grids = worker_.background() ? kBackgroundParallelGrids : 1;
+  const ModelExtras* extras = extras_for(mp);
+  const std::size_t extra_grids = extras ? extras->grids.size() : 0;
   vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
-                                           static_cast<int>(1 + has_wood + mp.solutions.size() * grids_per_solution()),
-                                           file_meta,
+                                           static_cast<int>(1 + has_wood + extra_grids +
+                                                            solutions_expected(mp) * grids_per_solution()),
+                                           extras ? merged(file_meta, extras->file_metadata) : file_meta,
                                            parallel_grids);
   worker_.post([this, &mp, has_wood] {
     const auto t0 = std::chrono::steady_clock::now();
@@ -170,7 +201,25 @@ void BakeOutput::start_model(const ModelPlan& mp) {
     }
     output_seconds_ += since(t0);
   });
+  if (extras)
+    worker_.post([this, &mp, extras] {
+      const auto t0 = std::chrono::steady_clock::now();
+      for (const ModelExtras::Grid& e : extras->grids) {
+        const bool scalar = !e.scalar.empty();
+        vdb_->add({e.name, scalar ? &e.scalar : nullptr, scalar ? nullptr : &e.rgb, false,
+                   merged(lattice_box_json(mp), e.metadata)});
+      }
+      output_seconds_ += since(t0);
+    });
 }
+
+void BakeOutput::set_extras(const ModelPlan& mp, ModelExtras extras) {
+  if (model_ == &mp) throw Error(ErrorCategory::Internal, "bake output: extras after the model's first solution");
+  extras_model_ = &mp;
+  extras_ = std::move(extras);
+}
+
+const ModelExtras* BakeOutput::extras_for(const ModelPlan& mp) const { return extras_model_ == &mp ? &extras_ : nullptr; }
 
 void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   if (model_ != &mp) start_model(mp);
@@ -200,8 +249,14 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   g.metadata["lblight_active"] = keep_.empty() ? "the whole lattice box, boundary source values included"
                                                : "occupied nodes and their 26 neighbours (0 elsewhere)";
   LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
-  worker_.post([this, &mp, totals, std_error, g = std::move(g), lbh_in, slot]() mutable {
+  std::string raw_file;  // a unit's share of a model: its totals as solved, for the merge
+  if (unit_solutions_) {
+    raw_file = mp.spec->name + "." + r.plan.grid_name + ".totals";
+    raw_files_[r.plan.grid_name] = raw_file;
+  }
+  worker_.post([this, &mp, totals, std_error, g = std::move(g), lbh_in, slot, raw_file]() mutable {
     const auto t0 = std::chrono::steady_clock::now();
+    if (!raw_file.empty()) write_raw_totals(dir_.path(raw_file), *totals);
     // The ground layer's own totals mix what arrives from above with the boundary below it; a
     // renderer interpolating down to the ground should see the light just above it instead.
     if (mp.ground.on)
@@ -323,6 +378,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     s["grid"] = r.plan.grid_name;
     s["file"] = model["file"];
     s["iterations"] = r.iterations;
+    if (r.warm_start) s["warm_start"] = true;
     if (r.photons > 0) s["photons"] = r.photons;
     if (r.plan.derived) s["derived"] = "sum of B01..B18 (docs/model.md sec. 4); iterations: the largest of theirs";
     s["seconds"] = r.seconds;
@@ -340,6 +396,9 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
     if (plan_.scene->output.half) s["half_error_max"] = half_error_[order[k]];
     model["solutions"].push_back(s);
   }
+  if (const ModelExtras* extras = extras_for(mp)) model.update(extras->manifest);
+  extras_model_ = nullptr;
+  extras_ = {};
   model_ = nullptr;
   done_.clear();
   encoded_.clear();
@@ -368,7 +427,7 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   nlohmann::json m;
   m["lblight_version"] = kVersion;
   m["manifest_format"] = kManifestFormat;
-  m["created"] = utc_now();
+  m["created"] = utc_timestamp();
   m["command"] = info_.command_line;
   m["scene"] = {{"file", plan_.scene->file.string()}, {"name", plan_.scene->name}, {"hash", plan_.scene->hash}};
   m["lighting"] = plan_.scene->lighting.mode == LightingMode::Base ? "base" : "static";
@@ -388,6 +447,11 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
                              "below 0, sky S is 9 S + 5 A S; each grid's lblight_units gives its open-air value "
                              "(docs/model.md sec. 4.3)"}};
   m["total_seconds"] = total_seconds;
+  if (!info_.unit.is_null()) {
+    m["unit"] = info_.unit;
+    if (unit_solutions_) m["unit"]["totals"] = raw_files_;
+    m["unit"]["files"] = file_checksums(dir_.staging(), m);
+  }
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");
   dir_.commit();
   return m;

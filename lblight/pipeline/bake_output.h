@@ -6,6 +6,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,15 +29,38 @@ struct BakeRunInfo {
   // A Monte Carlo reference (lblight truth): its settings, recorded as the manifest's
   // "reference"; each solution then also gets a grid <name>_se with its standard error.
   nlohmann::json reference;
+  // A work unit's partial output (docs/scale-out.md): its name, inputs hash and the scene's units,
+  // recorded as the manifest's "unit" with the checksums of the files written. A unit of some of
+  // a model's solutions ("solutions") also writes each one's totals as solved (unmasked floats,
+  // write_raw_totals) to <model>.<grid>.totals, from which a merge assembles the whole model.
+  nlohmann::json unit;
+};
+
+// What a caller adds to one model's output besides the bake's own (a gas frame's temperature,
+// velocity and frame number): grids on the model's lattice frame, written after its density;
+// members of the .vdb's file metadata; members of its manifest entry.
+struct ModelExtras {
+  struct Grid {
+    std::string name;
+    std::vector<float> scalar;              // a float grid, or (empty) ...
+    std::array<std::vector<float>, 3> rgb;  // ... a Vec3f grid
+    nlohmann::json metadata = nlohmann::json::object();
+  };
+  std::vector<Grid> grids;
+  nlohmann::json file_metadata = nlohmann::json::object();
+  nlohmann::json manifest = nlohmann::json::object();
 };
 
 class BakeOutput {
  public:
-  // write_in_background: run the output work on a thread of its own (GPU backends).
+  // write_in_background: run the output work on a thread of its own (GPU backends). kind: what
+  // the folder is (a lit gas sequence is a Simulation that also holds a manifest).
   BakeOutput(const BakePlan& plan, const std::filesystem::path& target, BakeRunInfo info,
-             bool write_in_background = false);
+             bool write_in_background = false, OutputKind kind = OutputKind::Bake);
   ~BakeOutput();
 
+  // Before the model's first solution; kept until its finish_model.
+  void set_extras(const ModelPlan& model, ModelExtras extras);
   void add(const ModelPlan& model, SolutionResult& result);  // takes the totals
   void set_peak_bytes(const ModelPlan& model, std::size_t bytes);
   void finish_model(const ModelPlan& model);                 // completes <model>.vdb and .lbh
@@ -44,11 +68,15 @@ class BakeOutput {
   nlohmann::json commit(double total_seconds);
 
   const std::filesystem::path& target() const { return dir_.target(); }
+  // A file of the output, to write before commit (it appears with the rest).
+  std::filesystem::path path(const std::string& name) const { return dir_.path(name); }
   // Per solution rows for the summary table, in bake order.
   const nlohmann::json& models() const { return models_; }
 
  private:
   void start_model(const ModelPlan& model);
+  std::size_t solutions_expected(const ModelPlan& model) const;
+  const ModelExtras* extras_for(const ModelPlan& model) const;
   int grids_per_solution() const { return info_.reference.is_null() ? 1 : 2; }
 
   const BakePlan& plan_;
@@ -56,6 +84,8 @@ class BakeOutput {
   BakeRunInfo info_;
   // Per model, while it is being baked. Declared before worker_: the worker stops first.
   const ModelPlan* model_ = nullptr;
+  const ModelPlan* extras_model_ = nullptr;  // the model extras_ belong to
+  ModelExtras extras_;
   std::vector<SolutionResult> done_;   // manifest rows (totals handed to the worker)
   std::vector<LbhEncoded> encoded_;    // slot i: done_[i], filled by the worker
   std::vector<std::uint8_t> keep_;     // nodes whose light is written (empty: all of them)
@@ -64,9 +94,17 @@ class BakeOutput {
   std::unique_ptr<VdbStreamWriter> vdb_;
   double output_seconds_ = 0;          // worker time spent on this model's output
   std::size_t peak_bytes_ = 0;
+  std::size_t unit_solutions_ = 0;     // a unit of that many of a model's solutions (0: all)
+  std::map<std::string, std::string> raw_files_;  // grid -> its .totals file
   nlohmann::json models_ = nlohmann::json::array();
   SerialWorker worker_;
 };
+
+// A solution's totals as a unit's .totals file: R, G, B, one float per lattice node each (native
+// byte order: a merge reads them on the same cluster), and back. Error(Io) / Error(InvalidInput)
+// naming the file when it cannot be written or read, or its size is not 3 x `nodes` floats.
+void write_raw_totals(const std::filesystem::path& file, const std::array<std::vector<float>, 3>& totals);
+std::array<std::vector<float>, 3> read_raw_totals(const std::filesystem::path& file, std::size_t nodes);
 
 // Manifest pieces shared with `validate --json` and `inspect`.
 nlohmann::json material_json(const Material& m);

@@ -59,7 +59,7 @@ nlohmann::json run_truth(const BakePlan& plan, const MonteCarloOptions& options,
                          double seconds_before) {
   const auto t0 = std::chrono::steady_clock::now();
   BakeOutput output(plan, target, {command_line, "montecarlo", "Monte Carlo reference (host threads)",
-                                   reference_json(options)});
+                                   reference_json(options), nullptr});
   return write_all(plan, output, kMonteCarloBytesPerNode, observer, ctx, seconds_before, t0,
                    [&](const ModelPlan& mp, const SolutionPlan& s, std::uint64_t stream) {
                      BakeProgress ev;
@@ -86,7 +86,7 @@ nlohmann::json run_diffusion(const BakePlan& plan, const DiffusionRunOptions& op
                     {command_line, fld ? "fld" : "cda",
                      std::string(fld ? "flux-limited diffusion (Levermore-Pomraning)" : "classical diffusion") +
                          " of [Koerner2014] plus ray-marched uncollided light, " + solver + " (docs/truth.md)",
-                     nullptr});
+                     nullptr, nullptr});
   // fields of the solver: phi, D, sigma, albedo, emission, uncollided, multigrid work (~12 doubles)
   return write_all(plan, output, 96.0, observer, ctx, seconds_before, t0,
                    [&](const ModelPlan& mp, const SolutionPlan& s, std::uint64_t) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "lblight/core/system_info.h"
 #include "lblight/scene/mesh_source.h"
@@ -144,6 +145,12 @@ ModelGrid gas_density(const GasSource& s, const fluid::GasSolver& solver) {
   }
   g.material.assign(smoke.size(), kMaterialMedium);
   return g;
+}
+
+std::string gas_frame_name(const std::string& model, int frame) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, ".%04d", frame);
+  return model + buf;
 }
 
 ModelGrid make_gas_density(const GasSource& s, const Location& where, const RunContext& ctx) {

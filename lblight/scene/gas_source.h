@@ -3,6 +3,7 @@
 #pragma once
 
 #include <functional>
+#include <string>
 
 #include "lblight/core/error.h"
 #include "lblight/core/run_context.h"
@@ -31,6 +32,10 @@ void run_gas(const GasSource& source, int last, const Location& where, const Run
 // The smoke of the solver's current state as a density grid: concentration / inlet smoke,
 // clamped to [0, 1], and 0 below kMinGasDensity.
 ModelGrid gas_density(const GasSource& source, const fluid::GasSolver& solver);
+
+// "<model>.NNNN": a frame's file name without ".vdb" and, lit, its manifest entry (one file per
+// frame, numbered as Blender and Houdini read sequences).
+std::string gas_frame_name(const std::string& model, int frame);
 
 // The frame a bake lights (source.frame, 0 = the last), simulated.
 ModelGrid make_gas_density(const GasSource& source, const Location& where, const RunContext& ctx);

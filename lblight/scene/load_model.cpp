@@ -25,11 +25,15 @@ ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const RunC
     case SourceType::Gas: g = make_gas_density(model.density.gas, {scene.file.string(), model.density.json_path, {}}, ctx);
       break;
   }
+  ctx.check_cancelled();  // a procedural or .vdb source does not poll
+  return finish_model_grid(model, scene, std::move(g));
+}
+
+ModelGrid finish_model_grid(const ModelSpec& model, const Scene& scene, ModelGrid g) {
   // NaN stays NaN through the scale and is reported below with its voxel.
   const float scale = static_cast<float>(model.density.density_scale);
   if (scale != 1.0f)
     for (float& d : g.density) d *= scale;
-  ctx.check_cancelled();  // a procedural or .vdb source does not poll
   check_density_values(model, g, scene);
   for (std::size_t i = 0; i < g.density.size(); ++i)
     if (g.density[i] == 0.0f) g.material[i] = kMaterialMedium;

@@ -12,4 +12,8 @@ namespace lblight {
 // occupied nodes count as wood. Error(Cancelled) once ctx.cancel is set (voxelisation polls it).
 ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const RunContext& ctx = {});
 
+// What load_model_grid does to the grid a source produced: density_scale, the value checks and
+// the materials of empty nodes. For grids made elsewhere (a gas sequence's frames).
+ModelGrid finish_model_grid(const ModelSpec& model, const Scene& scene, ModelGrid grid);
+
 }  // namespace lblight

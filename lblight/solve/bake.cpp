@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "lblight/core/error.h"
 #include "lblight/backend/node_rules.h"
+#include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
 #include "lblight/solve/dsa.h"
 #include "lblight/solve/krylov.h"
@@ -37,9 +37,16 @@ struct BatchOutcome {
 
 class BatchRunner {
  public:
+  // warm: the systems start from a previous solve's state, so no minimum step count applies
+  // (BakeOptions::warm).
   BatchRunner(const ModelPlan& mp, LatticeSolver& solver, const RunContext& ctx, BakeObserver& observer,
-              std::vector<const SolutionPlan*> solutions, std::size_t systems)
-      : mp_(mp), solver_(solver), ctx_(ctx), observer_(observer), solutions_(std::move(solutions)) {
+              std::vector<const SolutionPlan*> solutions, std::size_t systems, bool warm)
+      : mp_(mp),
+        solver_(solver),
+        ctx_(ctx),
+        observer_(observer),
+        solutions_(std::move(solutions)),
+        min_steps_(warm ? 0 : mp.steps.min_steps) {
     out_.monitors.assign(systems, ConvergenceMonitor(mp.steps.precision, 1.0 - mp.steps.decay_hint));
     reset_latches();
     t0_ = Clock::now();
@@ -56,7 +63,7 @@ class BatchRunner {
       int chunk = pol.check_interval;
       if (fixed && out_.steps == 0 && total % pol.check_interval != 0) chunk = total % pol.check_interval;
       chunk = std::min(chunk, total - out_.steps);
-      if (check(chunk, total) && !fixed && out_.steps >= pol.min_steps) {
+      if (check(chunk, total) && !fixed && out_.steps >= min_steps_) {
         out_.converged = true;
         break;
       }
@@ -160,7 +167,7 @@ class BatchRunner {
   // DSA: whether the last cycles (after light has crossed the lattice) shrink the error faster
   // per second than plain steps would, at the plan's slowest plain decay per step.
   bool pays(double cycle_seconds, double step_seconds) const {
-    if (out_.steps < mp_.steps.min_steps) return true;
+    if (out_.steps < min_steps_) return true;
     double worst = 0;
     for (const ConvergenceMonitor& mon : out_.monitors) {
       const auto& h = mon.history();
@@ -221,7 +228,7 @@ class BatchRunner {
       const CheckPoint& cp = out_.monitors[s].history().back();
       if (s == 0 || cp.error_estimate > worst_point.error_estimate || std::isnan(cp.error_estimate)) worst_point = cp;
       const double e = out_.monitors[s].error_estimate(), em = out_.monitors[s].error_estimate_max();
-      if ((accelerated || out_.steps >= mp_.steps.min_steps) && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
+      if ((accelerated || out_.steps >= min_steps_) && (e < mp_.steps.tolerance || std::isfinite(out_.latched[s]))) {
         out_.latched[s] = std::min(out_.latched[s], e);
         out_.latched_max[s] = std::min(out_.latched_max[s], em);
       }
@@ -243,6 +250,7 @@ class BatchRunner {
   const RunContext& ctx_;
   BakeObserver& observer_;
   std::vector<const SolutionPlan*> solutions_;
+  int min_steps_;
   BatchOutcome out_;
   std::vector<Residual> residuals_;
   Clock::time_point t0_;
@@ -253,83 +261,67 @@ struct SystemRef {
   int channel;   // index into mp.channels
 };
 
-// B_0 assembled from the directional solutions as they finish (docs/model.md sec. 4). Interior nodes:
-// sum_j b_j B_j with b the boundary of B_0 (1 each in the papers' model, 18 w_j for isotropic
-// ambient light); boundary nodes: B_0's own fixed total, the sum of its boundary values (19 in the
-// papers' model). Error bound: ||sum b_j e_j|| <= sum b_j eps_j ||B_j||, over ||B_0||.
-class AmbientSum {
- public:
-  AmbientSum(const ModelPlan& mp) : mp_(mp) {
-    for (const SolutionPlan& s : mp.solutions)
-      if (s.derived) plan_ = &s;
-    if (!plan_) return;
-    for (auto& c : sum_) c.assign(mp.lattice.dims.count(), 0.0);
-  }
-  bool wanted() const { return plan_ != nullptr; }
-
-  void add(const SolutionResult& r) {
-    if (!plan_ || r.plan.index < 1) return;
-    const auto t0 = Clock::now();
-    double norm_sq = 0, peak = 0;
-    const double b = plan_->boundary[static_cast<std::size_t>(r.plan.index)];
-    for (int c = 0; c < kChannels; ++c) {
-      const std::vector<float>& t = r.totals[c];
-      for (std::size_t i = 0; i < t.size(); ++i) {
-        sum_[c][i] += b * t[i];
-        norm_sq += static_cast<double>(t[i]) * t[i];
-        peak = std::max(peak, static_cast<double>(t[i]));
-      }
-    }
-    bound_ += b * r.error_estimate * std::sqrt(norm_sq);
-    bound_max_ += b * r.error_estimate_max * peak;
-    iterations_ = std::max(iterations_, r.iterations);
-    converged_ = converged_ && r.converged;
-    ++count_;
-    seconds_ += std::chrono::duration<double>(Clock::now() - t0).count();
-  }
-
-  // After all 18 directional solutions.
-  void finish(BakeObserver& observer) {
-    if (!plan_) return;
-    if (count_ != 18) throw Error(ErrorCategory::Internal, "B00 from the sum: expected 18 directional solutions");
-    const auto t0 = Clock::now();
-    SolutionResult r;
-    r.plan = *plan_;
-    const Dims& d = mp_.lattice.dims;
-    double norm_sq = 0, max_value = 0;
-    for (int c = 0; c < kChannels; ++c) {
-      // what B00 solved directly holds there (over a ground its open-ground light, per channel)
-      const double boundary = boundary_total(system_boundary(mp_, *plan_, mp_.channel_of[static_cast<std::size_t>(c)]));
-      r.totals[c].resize(d.count());
-      for (int z = 0; z < d.nz; ++z)
-        for (int y = 0; y < d.ny; ++y)
-          for (int x = 0; x < d.nx; ++x) {
-            const std::size_t i = d.index(x, y, z);
-            const double v = d.is_boundary(x, y, z) ? boundary : sum_[c][i];
-            r.totals[c][i] = static_cast<float>(v);
-            norm_sq += v * v;
-            max_value = std::max(max_value, v);
-          }
-    }
-    r.iterations = iterations_;
-    r.converged = converged_;
-    r.error_estimate = norm_sq > 0 ? bound_ / std::sqrt(norm_sq) : 0.0;
-    r.error_estimate_max = max_value > 0 ? bound_max_ / max_value : 0.0;
-    r.seconds = seconds_ + std::chrono::duration<double>(Clock::now() - t0).count();
-    for (auto& c : sum_) std::vector<double>().swap(c);
-    observer.solution_done(mp_, r);
-  }
-
- private:
-  const ModelPlan& mp_;
-  const SolutionPlan* plan_ = nullptr;
-  std::array<std::vector<double>, 3> sum_;
-  double bound_ = 0, bound_max_ = 0, seconds_ = 0;
-  int iterations_ = 0, count_ = 0;
-  bool converged_ = true;
-};
-
 }  // namespace
+
+AmbientSum::AmbientSum(const ModelPlan& mp, bool wanted) : mp_(mp) {
+  if (!wanted) return;
+  for (const SolutionPlan& s : mp.solutions)
+    if (s.derived) plan_ = &s;
+  if (!plan_) return;
+  for (auto& c : sum_) c.assign(mp.lattice.dims.count(), 0.0);
+}
+
+void AmbientSum::add(const SolutionResult& r) {
+  if (!plan_ || r.plan.index < 1) return;
+  const auto t0 = Clock::now();
+  double norm_sq = 0, peak = 0;
+  const double b = plan_->boundary[static_cast<std::size_t>(r.plan.index)];
+  for (int c = 0; c < kChannels; ++c) {
+    const std::vector<float>& t = r.totals[c];
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      sum_[c][i] += b * t[i];
+      norm_sq += static_cast<double>(t[i]) * t[i];
+      peak = std::max(peak, static_cast<double>(t[i]));
+    }
+  }
+  bound_ += b * r.error_estimate * std::sqrt(norm_sq);
+  bound_max_ += b * r.error_estimate_max * peak;
+  iterations_ = std::max(iterations_, r.iterations);
+  converged_ = converged_ && r.converged;
+  ++count_;
+  seconds_ += seconds_since(t0);
+}
+
+void AmbientSum::finish(BakeObserver& observer) {
+  if (!plan_) return;
+  if (count_ != 18) throw Error(ErrorCategory::Internal, "B00 from the sum: expected 18 directional solutions");
+  const auto t0 = Clock::now();
+  SolutionResult r;
+  r.plan = *plan_;
+  const Dims& d = mp_.lattice.dims;
+  double norm_sq = 0, max_value = 0;
+  for (int c = 0; c < kChannels; ++c) {
+    // what B00 solved directly holds there (over a ground its open-ground light, per channel)
+    const double boundary = boundary_total(system_boundary(mp_, *plan_, mp_.channel_of[static_cast<std::size_t>(c)]));
+    r.totals[c].resize(d.count());
+    for (int z = 0; z < d.nz; ++z)
+      for (int y = 0; y < d.ny; ++y)
+        for (int x = 0; x < d.nx; ++x) {
+          const std::size_t i = d.index(x, y, z);
+          const double v = d.is_boundary(x, y, z) ? boundary : sum_[c][i];
+          r.totals[c][i] = static_cast<float>(v);
+          norm_sq += v * v;
+          max_value = std::max(max_value, v);
+        }
+  }
+  r.iterations = iterations_;
+  r.converged = converged_;
+  r.error_estimate = norm_sq > 0 ? bound_ / std::sqrt(norm_sq) : 0.0;
+  r.error_estimate_max = max_value > 0 ? bound_max_ / max_value : 0.0;
+  r.seconds = seconds_ + seconds_since(t0);
+  for (auto& c : sum_) std::vector<double>().swap(c);
+  observer.solution_done(mp_, r);
+}
 
 // An uneven last batch would step as often as the others with a fraction of the device busy.
 int balanced_batch(int total, int capacity, int channels) {
@@ -405,8 +397,9 @@ std::size_t batch_end(const std::vector<SystemRef>& queue, std::size_t start, in
 
 // Adds system s of a finished batch (its channel's totals, estimate and time share) to its solution.
 void add_channel(PartialSolution& p, const BatchOutcome& outcome, std::size_t s, double seconds,
-                 std::vector<float> totals, int channel) {
+                 std::vector<float> totals, int channel, bool warm) {
   SolutionResult& r = p.result;
+  r.warm_start = warm;
   p.per_channel[static_cast<std::size_t>(channel)] = std::move(totals);
   ++p.channels_done;
   r.iterations = std::max(r.iterations, outcome.steps);
@@ -421,10 +414,104 @@ void add_channel(PartialSolution& p, const BatchOutcome& outcome, std::size_t s,
   r.converged = r.converged && outcome.converged;
 }
 
+StateAccess* state_access_for_warm_start(LatticeSolver& solver, const Backend& backend) {
+  StateAccess* state = solver.state_access();
+  if (!state)
+    throw Error(ErrorCategory::Unavailable, "warm starts: the " + backend.name() +
+                                                " backend offers no state access; start every frame from zero");
+  return state;
+}
+
+// The batch's systems (queue entries first..first+count) set to their kept states, then measured
+// once: the first check's change is then against the warm totals, not against zero.
+void start_warm(LatticeSolver& solver, StateAccess& state, const WarmStart& warm, std::size_t first, std::size_t count,
+                std::vector<double>& buffer) {
+  for (std::size_t s = 0; s < count; ++s) {
+    const std::vector<float>& kept = warm.states[first + s];
+    buffer.assign(kept.begin(), kept.end());
+    state.write_state(static_cast<int>(s), buffer);
+  }
+  std::vector<Residual> baseline;
+  solver.measure(baseline);
+}
+
+void keep_states(const StateAccess& state, WarmStart& warm, std::size_t first, std::size_t count,
+                 std::vector<double>& buffer) {
+  for (std::size_t s = 0; s < count; ++s) {
+    state.read_state(static_cast<int>(s), buffer);
+    warm.states[first + s].assign(buffer.begin(), buffer.end());
+  }
+}
+
+}  // namespace
+
+std::vector<std::vector<int>> solution_batches(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
+  BakeOptions whole = opt;
+  whole.solutions.clear();
+  const int capacity = batch_capacity(mp, backend, whole);
+  const int channels = static_cast<int>(mp.channels.size());
+  const std::vector<SystemRef> queue = system_queue(mp);
+  std::vector<std::vector<int>> batches;
+  for (std::size_t start = 0; start < queue.size();) {
+    const std::size_t end = batch_end(queue, start, capacity, channels);
+    std::vector<int> b;
+    for (std::size_t q = start; q < end; ++q) {
+      const int index = mp.solutions[static_cast<std::size_t>(queue[q].solution)].index;
+      if (b.empty() || b.back() != index) b.push_back(index);
+    }
+    batches.push_back(b);
+    start = end;
+  }
+  return batches;
+}
+
+namespace {
+
+std::string grid_list(const std::vector<int>& indices, const char* sep = " ") {
+  std::string s;
+  for (int i : indices) s += (s.empty() ? "" : sep) + base_grid_name(i);
+  return s;
+}
+
+// A unit's solutions: planned for the model, not derived, and whole batches.
+void check_solution_subset(const ModelPlan& mp, const std::vector<std::vector<int>>& batches,
+                           const std::vector<int>& subset) {
+  const std::string model = "model '" + mp.spec->name + "'";
+  for (int index : subset) {
+    const auto it = std::find_if(mp.solutions.begin(), mp.solutions.end(),
+                                 [&](const SolutionPlan& s) { return s.index == index; });
+    if (it == mp.solutions.end()) {
+      std::vector<int> planned;
+      for (const SolutionPlan& s : mp.solutions) planned.push_back(s.index);
+      throw_invalid(base_grid_name(index) + " is not a solution of " + model + "; allowed: " + grid_list(planned));
+    }
+    if (it->derived)
+      throw_invalid(base_grid_name(index) + " of " + model + " is the sum of B01..B18, not solved: the merge of "
+                    "the units computes it; leave it out");
+  }
+  std::vector<std::string> groups;
+  bool split = false;
+  for (const std::vector<int>& b : batches) {
+    const auto in = [&](int i) { return std::find(subset.begin(), subset.end(), i) != subset.end(); };
+    const bool all = std::all_of(b.begin(), b.end(), in), none = std::none_of(b.begin(), b.end(), in);
+    split = split || (!all && !none);
+    groups.push_back(grid_list(b, ","));
+  }
+  if (split) {
+    std::string allowed;
+    for (const std::string& g : groups) allowed += (allowed.empty() ? "" : " | ") + g;
+    throw_invalid("solutions " + grid_list(subset) + " split a batch of " + model +
+                  " (a batch runs until its slowest system is done: only whole batches come out as in a whole "
+                  "bake); allowed: unions of the batches " + allowed);
+  }
+}
+
 }  // namespace
 
 void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt, BakeObserver& observer,
                 const RunContext& ctx) {
+  const bool subset = !opt.solutions.empty();
+  if (subset) check_solution_subset(mp, solution_batches(mp, backend, opt), opt.solutions);
   if (mp.steps.method == SolverMethod::BiCGStab && mp.steps.mode != IterationMode::Auto)
     throw_invalid("solver method bicgstab needs iterations \"auto\" (it stops on the error estimate)");
   const int capacity = batch_capacity(mp, backend, opt);
@@ -445,9 +532,20 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   observer.model_started(mp, backend, solver->bytes_in_use());
 
   const std::vector<SystemRef> queue = system_queue(mp);
+  StateAccess* warm_state =
+      opt.warm && mp.steps.mode == IterationMode::Auto ? state_access_for_warm_start(*solver, backend) : nullptr;
+  // States of another lattice (or plan) cannot start this one: its systems start from zero.
+  const bool warm_now = warm_state && opt.warm->dims == mp.lattice.dims && opt.warm->states.size() == queue.size() &&
+                        std::none_of(opt.warm->states.begin(), opt.warm->states.end(),
+                                     [](const std::vector<float>& f) { return f.empty(); });
+  if (warm_state && !warm_now) {
+    opt.warm->dims = mp.lattice.dims;
+    opt.warm->states.assign(queue.size(), {});
+  }
+  std::vector<double> state_buffer;
   const int channels = static_cast<int>(mp.channels.size());
   const bool fixed = mp.steps.mode != IterationMode::Auto;
-  AmbientSum ambient(mp);
+  AmbientSum ambient(mp, /*wanted=*/!subset);
   std::vector<PartialSolution> partial(mp.solutions.size());
   for (std::size_t s = 0; s < partial.size(); ++s) {
     partial[s].result.plan = mp.solutions[s];
@@ -457,6 +555,11 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
 
   for (std::size_t start = 0; start < queue.size();) {
     const std::size_t end = batch_end(queue, start, capacity, channels);
+    const int first = mp.solutions[static_cast<std::size_t>(queue[start].solution)].index;
+    if (subset && std::find(opt.solutions.begin(), opt.solutions.end(), first) == opt.solutions.end()) {
+      start = end;  // another unit's batch (whole batches only: checked above)
+      continue;
+    }
     std::vector<SystemSpec> batch;
     std::vector<const SolutionPlan*> batch_solutions;
     for (std::size_t q = start; q < end; ++q) {
@@ -466,7 +569,8 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     }
 
     solver->reset(batch);
-    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size());
+    if (warm_now) start_warm(*solver, *warm_state, *opt.warm, start, batch.size(), state_buffer);
+    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size(), warm_now);
     std::vector<DiffusionCorrection*> batch_corrections;
     for (const SystemSpec& spec : batch)
       if (!corrections.empty()) batch_corrections.push_back(corrections[static_cast<std::size_t>(spec.channel)].get());
@@ -475,6 +579,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
                                                                            : runner.plain();
     const double batch_seconds = runner.seconds();
     observer.memory_in_use(mp, solver->bytes_in_use());
+    if (warm_state) keep_states(*warm_state, *opt.warm, start, batch.size(), state_buffer);
 
     // Collect each system's totals; a solution is done once all its channels are.
     for (std::size_t s = 0; s < batch.size(); ++s) {
@@ -482,7 +587,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       std::vector<float> totals(mp.lattice.dims.count());
       solver->read_totals(static_cast<int>(s), totals.data());
       add_channel(p, outcome, s, batch_seconds / static_cast<double>(batch.size()), std::move(totals),
-                  batch[s].channel);
+                  batch[s].channel, warm_now);
       if (p.channels_done < channels) continue;
       SolutionResult r = std::move(p.result);
       r.converged = !fixed && r.converged;

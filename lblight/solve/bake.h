@@ -20,6 +20,7 @@ struct SolutionResult {
   double error_estimate = 0;   // relative L2, the worst channel (inf = not estimable)
   double error_estimate_max = 0;  // relative max norm, the worst channel
   bool converged = false;      // Auto: reached the tolerance; Fixed/Paper: not applicable (false)
+  bool warm_start = false;     // started from a previous solve's state (BakeOptions::warm)
   int krylov_iterations = 0;   // BiCGStab iterations (method bicgstab)
   double krylov_residual = 0;  // its final relative residual
   std::vector<CheckPoint> history;                    // worst channel at every check
@@ -60,8 +61,27 @@ class BakeObserver {
   virtual void inspect(const BakeProgress&, LatticeSolver&, bool /*measured*/) {}
 };
 
+// The final states of a model's systems, carried from one bake_model call to the next on the same
+// lattice box (a gas sequence's frames, docs/fluid.md): each system then starts where the previous
+// call's stopped instead of from zero. Floats: a starting point needs no more, since the iteration
+// converges to its own fixed point from any start (float64 bakes start from the rounded state).
+struct WarmStart {
+  Dims dims;                                // the lattice the states belong to
+  std::vector<std::vector<float>> states;   // per system in bake order: 19 x dims.count(), direction-major
+};
+
 struct BakeOptions {
   int max_systems = 0;  // per batch; 0 = as memory allows
+  // Only these base solutions (indices 0..18, none derived): a work unit's share of the model
+  // (docs/scale-out.md). They must be whole batches of the model's own batching (solution_batches:
+  // a batch runs until its slowest system is done), so each comes out exactly as in a bake of the
+  // whole model; a B00 summed from B01..B18 is then left to whoever has all of them. Empty: all.
+  std::vector<int> solutions;
+  // Iterations "auto" only: start every system from warm->states when they are of this lattice
+  // and this many systems (else from zero), and leave each system's final state there. Needs the
+  // backend's StateAccess (Error(Unavailable) otherwise). A warm start has no minimum step count:
+  // docs/fluid.md, "Warm starts", says why the convergence estimate alone is an honest stop then.
+  WarmStart* warm = nullptr;
 };
 
 // Systems per batch for `model` on `backend`: the backend's preference (or options.max_systems),
@@ -71,6 +91,30 @@ int batch_capacity(const ModelPlan& model, const Backend& backend, const BakeOpt
 // The smallest batch size that needs no more batches than `capacity` does, a multiple of
 // `channels` when `capacity` is: 57 systems at capacity 18 run as 15+15+15+12.
 int balanced_batch(int total, int capacity, int channels);
+
+// The base solution indices of each batch bake_model runs for `model` (whole model; derived
+// solutions are in none).
+std::vector<std::vector<int>> solution_batches(const ModelPlan& model, const Backend& backend, const BakeOptions& options);
+
+// B_0 assembled from the 18 directional solutions as they finish (docs/model.md sec. 4), when the
+// model derives it (and `wanted`): interior nodes sum_j b_j B_j with b the boundary of B_0,
+// boundary nodes B_0's own fixed total. Error bound: ||sum b_j e_j|| <= sum b_j eps_j ||B_j||,
+// over ||B_0||. bake_model uses it, and a merge that assembles a model from its units' totals.
+class AmbientSum {
+ public:
+  AmbientSum(const ModelPlan& model, bool wanted = true);
+  bool wanted() const { return plan_ != nullptr; }
+  void add(const SolutionResult& r);        // a directional solution, with its totals
+  void finish(BakeObserver& observer);      // after all 18: hands B_0 to the observer
+
+ private:
+  const ModelPlan& mp_;
+  const SolutionPlan* plan_ = nullptr;
+  std::array<std::vector<double>, 3> sum_;
+  double bound_ = 0, bound_max_ = 0, seconds_ = 0;
+  int iterations_ = 0, count_ = 0;
+  bool converged_ = true;
+};
 
 // Solves every solution of `model` in its plan's precision (model.steps.precision) and hands each
 // to the observer as its last channel finishes. Stops with Error(Cancelled) at the next check once

@@ -392,21 +392,61 @@ void plan_forest(BakePlan& plan, const Scene& scene, const PlanOverrides& ov) {
 
 std::string forest_alone_name(const std::string& model) { return std::string(kForestCoarseName) + ".alone." + model; }
 
-BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
+std::vector<std::string> lattice_names(const Scene& scene) {
+  std::vector<std::string> names;
+  for (const ModelSpec& spec : scene.models) names.push_back(spec.name);
+  if (!scene.forest.empty() && scene.forest.coarse) {
+    names.push_back(kForestCoarseName);
+    for (const ModelSpec& spec : scene.models) names.push_back(forest_alone_name(spec.name));
+  }
+  return names;
+}
+
+BakePlan plan_without_models(const Scene& scene, const PlanOverrides& ov) {
   BakePlan plan;
   plan.scene = &scene;
   plan.precision = ov.precision.value_or(scene.solver.precision);
+  return plan;
+}
+
+ModelPlan plan_model(BakePlan& plan, const ModelSpec& spec, ModelGrid grid, const PlanOverrides& ov) {
+  const Scene& scene = *plan.scene;
+  ModelPlan mp;
+  mp.spec = &spec;
+  plan_lattice(mp, scene, std::move(grid), plan.warnings, spec.ground);
+  plan_channels(mp, scene.solver.model);
+  plan_solutions(mp, scene, ov);
+  plan_steps(mp, scene, ov, plan.precision);
+  return mp;
+}
+
+BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext& ctx) {
+  BakePlan plan = plan_without_models(scene, ov);
+  // A scene model as the only lattice needs its own grid; a coarse forest lattice every model's.
+  bool only_model = false;
+  if (ov.only) {
+    const std::vector<std::string> names = lattice_names(scene);
+    if (std::find(names.begin(), names.end(), *ov.only) == names.end()) {
+      std::string allowed;
+      for (const std::string& n : names) allowed += (allowed.empty() ? "" : ", ") + n;
+      throw_invalid("--only '" + *ov.only + "' is not a lattice of this scene; allowed: " + allowed,
+                    {scene.file.string(), {}, {}});
+    }
+    only_model = std::any_of(scene.models.begin(), scene.models.end(),
+                             [&](const ModelSpec& m) { return m.name == *ov.only; });
+  }
   plan.models.reserve(scene.models.size());
   for (const ModelSpec& spec : scene.models) {
-    ModelPlan mp;
-    mp.spec = &spec;
-    plan_lattice(mp, scene, load_model_grid(spec, scene, ctx), plan.warnings, spec.ground);
-    plan_channels(mp, scene.solver.model);
-    plan_solutions(mp, scene, ov);
-    plan_steps(mp, scene, ov, plan.precision);
-    plan.models.push_back(std::move(mp));
+    if (only_model && spec.name != *ov.only) continue;
+    plan.models.push_back(plan_model(plan, spec, load_model_grid(spec, scene, ctx), ov));
   }
-  if (!scene.forest.empty()) plan_forest(plan, scene, ov);
+  // A model unit of a forest with coarse lattices leaves the forest (its cell size needs every
+  // grid) to the forest units.
+  if (!scene.forest.empty() && !(only_model && scene.forest.coarse)) plan_forest(plan, scene, ov);
+  if (ov.only)
+    plan.models.erase(std::remove_if(plan.models.begin(), plan.models.end(),
+                                     [&](const ModelPlan& mp) { return mp.spec->name != *ov.only; }),
+                      plan.models.end());
   return plan;
 }
 

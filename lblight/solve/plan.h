@@ -32,6 +32,9 @@ struct PlanOverrides {
   std::optional<double> tolerance;            // --tolerance
   std::optional<Precision> precision;
   std::optional<SolverMethod> method;         // --method
+  // --only: plan just this lattice (a work unit, docs/scale-out.md): a scene model, loading only
+  // its grid, or a coarse forest lattice, which needs every model's grid.
+  std::optional<std::string> only;
 };
 
 struct SolutionPlan {
@@ -119,6 +122,10 @@ struct ForestPlan {
 inline constexpr const char* kForestCoarseName = "forest";
 std::string forest_alone_name(const std::string& model);  // "forest.alone.<model>"
 
+// The names of a scene's lattices in plan order (its models, then "forest" and "forest.alone.<m>"
+// when it has coarse forest lattices), without loading any grid: the work units of a bake.
+std::vector<std::string> lattice_names(const Scene& scene);
+
 struct BakePlan {
   const Scene* scene = nullptr;
   Precision precision = Precision::Float32;  // resolved once here (override, else the scene's)
@@ -130,6 +137,15 @@ struct BakePlan {
 // Loads every model's grid, validates it (docs/model.md sec. 6) and lays out the work. Loading and
 // voxelising stop with Error(Cancelled) once ctx.cancel is set.
 BakePlan make_plan(const Scene& scene, const PlanOverrides& overrides = {}, const RunContext& ctx = {});
+
+// The plan's scene and precision, no models yet: make_plan's start, and the frame plans of a gas
+// sequence (pipeline/gas_frames.h), which plan_model adds to one frame at a time.
+BakePlan plan_without_models(const Scene& scene, const PlanOverrides& overrides = {});
+
+// What make_plan does with each model's loaded grid, for a grid the caller made: checked, cropped
+// when spec.crop, grown into its lattice, with its channels, solutions and step policy. Warnings go
+// to plan.warnings; the result is not added to plan.models.
+ModelPlan plan_model(BakePlan& plan, const ModelSpec& spec, ModelGrid grid, const PlanOverrides& overrides = {});
 
 // The grid cut to the box of its occupied nodes (unchanged when empty or already tight). Index
 // coordinates and the transform are kept, so the interior of the smaller lattice sees exactly the

@@ -1,9 +1,12 @@
 // lblight simulate and the "gas" density source: frames written as .vdb (density, temperature,
 // velocity) with simulation.json, the smoke rising frame by frame, a bake lighting the chosen
-// frame, and unstable settings refused by JSON pointer before anything is written.
+// frame, unstable settings refused by JSON pointer before anything is written, and every frame
+// lit (--light), warm-started from the previous one.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <filesystem>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
@@ -78,6 +81,11 @@ TEST_CASE("simulate: a bake lights the chosen frame of the gas", "[cli][fluid]")
   const nlohmann::json m = nlohmann::json::parse(read_text(tmp / "bake" / "manifest.json"));
   CHECK(m["models"][0]["source"].get<std::string>().find("frame 2 of 3") != std::string::npos);
   CHECK(m["models"][0]["occupied_nodes"].get<long long>() > 20);
+  // validate plans that frame too, and says it simulated to get it.
+  const CliResult v = run_cli("validate gas.json --backend cpu --no-timing", tmp.path());
+  CHECK(v.exit_code == 0);
+  CHECK(v.out.find("frame 2 of 3") != std::string::npos);
+  CHECK(v.out.find("ran the gas simulation up to this frame") != std::string::npos);
 }
 
 TEST_CASE("simulate: unstable or unusable gas settings are refused by field, with nothing written", "[cli][fluid]") {
@@ -159,4 +167,65 @@ TEST_CASE("simulate: a mesh obstacle is solid for the gas, and one outside the b
   const CliResult far = run_cli("simulate far.json -o far -q", tmp.path());
   CHECK(far.exit_code == 2);
   CHECK(far.err.find("/models/0/density/obstacles/0") != std::string::npos);
+}
+
+TEST_CASE("simulate --light: every frame lit in its own file, warm frames in fewer steps, a frame renders",
+          "[cli][fluid][warm]") {
+  TempDir tmp;
+  // Thin grey smoke, as configs/chimney.json lights (the shared scene's cloud would need thousands of steps).
+  std::string text = scene("");
+  text.replace(text.find(R"("material": "cloud")"), 19,
+               R"("material": {"name": "smoke", "sigma_a": 0.1, "sigma_s": 0.9, "g": 0.3, "absorb": true})");
+  write_text(tmp / "gas.json", text);
+  const CliResult r = run_cli("simulate gas.json -o lit --light --backend cpu -q", tmp.path());
+  INFO(r.out << r.err);
+  REQUIRE(r.exit_code == 0);
+  // One model per frame in the manifest, named as its file; the frames after the first start warm.
+  const nlohmann::json m = nlohmann::json::parse(read_text(tmp / "lit" / "manifest.json"));
+  const nlohmann::json rec = nlohmann::json::parse(read_text(tmp / "lit" / "simulation.json"));
+  REQUIRE(m["models"].size() == 3);
+  REQUIRE(rec["frames"].size() == 3);
+  for (int f = 1; f <= 3; ++f) {
+    const nlohmann::json& model = m["models"][static_cast<std::size_t>(f - 1)];
+    const std::string name = "plume.000" + std::to_string(f);
+    CHECK(model["name"] == name);
+    CHECK(model["file"] == name + ".vdb");
+    CHECK(model["frame"] == f);
+    CHECK(model["solutions"][0].value("warm_start", false) == (f > 1));
+    // The whole gas box every frame (never cropped): the warm start maps node to node.
+    CHECK(model["lattice"]["dims"] == nlohmann::json::array({14, 14, 26}));
+    const nlohmann::json info = inspect_vdb(tmp / "lit" / (name + ".vdb"));
+    std::set<std::string> names;
+    for (const auto& g : info["grids"]) names.insert(g["name"].get<std::string>());
+    CHECK(names == std::set<std::string>{"density", "light", "temperature", "velocity"});
+    CHECK(info["file_metadata"]["lblight_frame"] == f);
+  }
+  const auto steps = [&](const char* folder, int f) {
+    return nlohmann::json::parse(read_text(tmp / folder / "simulation.json"))["frames"][f - 1]["light"]["steps"].get<int>();
+  };
+  INFO("light steps per frame: " << steps("lit", 1) << ", " << steps("lit", 2) << ", " << steps("lit", 3));
+  CHECK(steps("lit", 3) < steps("lit", 1));
+  // Each frame from zero: the same light within the tolerance (1e-3), in more steps.
+  REQUIRE(run_cli("simulate gas.json -o cold --light --cold --backend cpu -q", tmp.path()).exit_code == 0);
+  CHECK(steps("cold", 3) > steps("lit", 3));
+  const DenseGridIn warm = read_vdb_grid_dense(tmp / "lit" / "plume.0003.vdb", "light");
+  const DenseGridIn cold = read_vdb_grid_dense(tmp / "cold" / "plume.0003.vdb", "light");
+  REQUIRE(warm.frame.dims == cold.frame.dims);
+  double diff = 0, norm = 0;
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < cold.values[c].size(); ++i) {
+      diff += std::pow(warm.values[c][i] - cold.values[c][i], 2.0);
+      norm += std::pow(cold.values[c][i], 2.0);
+    }
+  CHECK(std::sqrt(diff / norm) < 2e-3);
+  // A frame renders with the scene's sun, its material from the manifest.
+  const CliResult img = run_cli("render lit/plume.0003.vdb --sun-elevation 40 --sun-azimuth 0 --orbit front --size 24x32 -o f3.exr",
+                                tmp.path());
+  INFO(img.err);
+  CHECK(img.exit_code == 0);
+  CHECK(std::filesystem::exists(tmp.path() / "f3.png"));
+  // A lit sequence is replaced by a plain one, as any simulation is.
+  CHECK(run_cli("simulate gas.json -o lit -q --frames 1", tmp.path()).exit_code == 0);
+  CHECK_FALSE(std::filesystem::exists(tmp.path() / "lit" / "manifest.json"));
+  CHECK(run_cli("simulate gas.json -o x --cold -q", tmp.path()).exit_code == 2);
 }
