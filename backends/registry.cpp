@@ -8,6 +8,9 @@
 #if LBLIGHT_WITH_CUDA
 #include "backends/cuda/cuda_backend.h"
 #endif
+#if LBLIGHT_WITH_MPI
+#include "backends/mpi/mpi_backend.h"
+#endif
 
 namespace lblight {
 
@@ -21,6 +24,15 @@ std::string gpu_unavailable_reason() {
 
 std::unique_ptr<Backend> make_backend(const BackendRequest& req) {
   if (req.name == "cpu") return make_openmp_backend(req.threads);
+  if (req.name == "mpi") {
+#if LBLIGHT_WITH_MPI
+    return make_mpi_backend(req.threads);
+#else
+    throw Error(ErrorCategory::Unavailable,
+                "--backend mpi cannot run: this lblight was built without MPI (install libopenmpi-dev and rebuild; "
+                "docs/scale-out.md)");
+#endif
+  }
   if (req.name == "cuda") {
     const std::string why = gpu_unavailable_reason();
     if (!why.empty()) throw Error(ErrorCategory::Unavailable, "--backend cuda cannot run: " + why);
@@ -40,7 +52,7 @@ std::unique_ptr<Backend> make_backend(const BackendRequest& req) {
     spdlog::info("backend auto: using the CPU ({})", why);
     return make_openmp_backend(req.threads);
   }
-  throw_invalid("unknown backend '" + req.name + "'; allowed: auto, cpu, cuda");
+  throw_invalid("unknown backend '" + req.name + "'; allowed: auto, cpu, cuda, mpi");
 }
 
 }  // namespace lblight

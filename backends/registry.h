@@ -11,7 +11,7 @@
 namespace lblight {
 
 struct BackendRequest {
-  std::string name = "auto";  // auto | cpu | cuda
+  std::string name = "auto";  // auto | cpu | cuda | mpi
   int threads = 0;            // CPU threads; 0 = all cores (or OMP_NUM_THREADS)
   int device = 0;             // GPU ordinal
 };

@@ -14,8 +14,9 @@ packages=(
 )
 # Optional: Debian's hipcc (~13 s, 66 MB download) lets the tests compile the GPU backend as HIP;
 # blender (~20 s, 75 MB) runs the add-on test (tools/blender) headless; slurm-wlm and munge (~4 s,
-# 3.5 MB) let the scale-out test run a one-node Slurm (scripts/local-slurm.sh, docs/scale-out.md).
-optional=(hipcc blender slurm-wlm munge)
+# 3.5 MB) let the scale-out test run a one-node Slurm (scripts/local-slurm.sh, docs/scale-out.md);
+# Open MPI (~8 s, 12 MB) builds the mpi backend and runs its test under mpirun.
+optional=(hipcc blender slurm-wlm munge openmpi-bin libopenmpi-dev)
 
 installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
 missing=()
@@ -40,5 +41,5 @@ fi
 if ((${#missing_optional[@]})); then
   echo "setup: installing optional ${missing_optional[*]}"
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing_optional[@]}" ||
-    echo "setup: optional packages unavailable; the HIP compile check, the Blender add-on test or the Slurm test will be skipped"
+    echo "setup: optional packages unavailable; the HIP compile check, the Blender add-on test, the Slurm test or the MPI test will be skipped"
 fi

@@ -8,6 +8,8 @@
 #include <iostream>
 #include <memory>
 
+#include <unistd.h>
+
 #include "apps/lblight/bake_progress.h"
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
@@ -60,7 +62,7 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   // Starting a GPU (driver and context, 0.1-1 s) overlaps loading and voxelising the models; a
   // failure to start is reported once the plan is made.
   std::future<std::unique_ptr<Backend>> starting;
-  if (args.solve.backend != "cpu")
+  if (args.solve.backend != "cpu" && args.solve.backend != "mpi")
     starting = std::async(std::launch::async, [&args] {
       const auto guard = hold_forks();  // the driver loads libraries: no .vdb probe forks meanwhile
       return args.solve.make_backend();
@@ -71,6 +73,20 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
                       "; allowed: float32 or float64 on cpu, float32 or float16 on cuda",
                   {scene.file.string(), "/solver/precision", {}});
+
+  // A distributed backend's other ranks run the same bake into a folder of their own, removed after.
+  std::filesystem::path out = target;
+  if (!backend->writes_output()) {
+    if (args.resume || !only.name.empty())
+      throw_invalid("--backend " + backend->name() + " bakes the whole scene on every rank: not with --only or --resume");
+    out = std::filesystem::temp_directory_path() / ("lblight-rank-output-" + std::to_string(::getpid()));
+    spdlog::set_level(spdlog::level::warn);  // rank 0 tells the progress
+  }
+  for (const ModelPlan& mp : plan.models)
+    if (mp.steps.method != SolverMethod::Plain && backend->name() == "mpi")
+      throw_invalid(std::string("--backend mpi runs plain iteration, not method ") + to_string(mp.steps.method) +
+                        "; use --method plain",
+                    {scene.file.string(), "/solver/method", {}});
 
   spdlog::info("scene '{}' ({}), backend: {}", scene.name, scene.file.string(), backend->description());
   for (const std::string& w : plan.warnings) spdlog::warn("{}", w);
@@ -108,7 +124,12 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
     std::filesystem::remove_all(parts_dir, ec);
     if (ec) spdlog::warn("could not remove {}: {}", parts_dir.string(), ec.message());
   } else {
-    run_bake(plan, *backend, target, global.command_line, log, ctx, seconds_since(t0));
+    run_bake(plan, *backend, out, global.command_line, log, ctx, seconds_since(t0));
+  }
+  if (out != target) {
+    std::error_code ec;
+    std::filesystem::remove_all(out, ec);
+    return 0;
   }
 
   Table table({"model", "solution", "direction", "iterations", "seconds", "error estimate"});

@@ -12,8 +12,10 @@ namespace lblight::cli {
 void SolveOptions::add_to(CLI::App& cmd) {
   add_plan_options(cmd);
   cmd.add_option("--backend", backend,
-                 "Compute backend: auto (GPU when one is usable, else CPU), cpu (OpenMP), cuda")
-      ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
+                 "Compute backend: auto (GPU when one is usable, else CPU), cpu (OpenMP), cuda, or mpi (one lattice "
+                 "split across the ranks of mpirun/srun, each running --threads OpenMP threads; plain iteration; "
+                 "rank 0 writes the output: docs/scale-out.md)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda", "mpi"}))
       ->capture_default_str();
   cmd.add_option("--threads", threads, "CPU threads (0 = OMP_NUM_THREADS or all cores)")
       ->check(CLI::Range(0, 4096))

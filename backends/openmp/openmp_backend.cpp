@@ -107,7 +107,7 @@ inline void stream_fence() {
 }
 
 template <typename Real>
-class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess {
+class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess, public SlabHalo {
   // One SIMD chunk = one cache line of one direction array.
   static constexpr int kLine = 64 / static_cast<int>(sizeof(Real));
 
@@ -193,6 +193,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       double v[kReduceSlots];
     };
     std::vector<RowSums> rows(static_cast<std::size_t>(rows_y) * rows_z);
+    layer_sums_.assign(static_cast<std::size_t>(active_) * rows_z * kReduceSlots, 0.0);
     for (int s = 0; s < active_; ++s) {
       Slot& slot = slots_[static_cast<std::size_t>(s)];
       const Real* g = slot.buffer(cur_);
@@ -215,8 +216,15 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           }
           rows[static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1)] = r;
         }
+      // rows into layers, layers in z order: the order a slab decomposition can repeat exactly
+      double* layers = layer_sums_.data() + static_cast<std::size_t>(s) * rows_z * kReduceSlots;
       double sums[kReduceSlots] = {};
-      for (const RowSums& r : rows) combine(sums, r.v);
+      for (int z = 0; z < rows_z; ++z) {
+        double l[kReduceSlots] = {};
+        for (int y = 0; y < rows_y; ++y) combine(l, rows[static_cast<std::size_t>(z) * rows_y + static_cast<std::size_t>(y)].v);
+        combine(sums, l);
+        std::copy_n(l, kReduceSlots, layers + static_cast<std::size_t>(z) * kReduceSlots);
+      }
       std::swap(slot.totals, slot.scratch);
       out[static_cast<std::size_t>(s)] = to_residual(sums);
     }
@@ -278,6 +286,19 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           for (int x = x0; x <= x1; ++x) dst[x] = static_cast<Real>(in[x]);
         }
       }
+  }
+
+  const double* layer_sums(int system) const override {
+    return layer_sums_.data() + static_cast<std::size_t>(system) * (d_.nz - 2) * kReduceSlots;
+  }
+
+  void read_layer(int system, int z, int sign, double* out) const override {
+    const Real* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
+    for_layer(z, sign, [&](std::size_t k, std::size_t at) { out[k] = static_cast<double>(g[at]); });
+  }
+  void write_layer(int system, int z, int sign, const double* in) override {
+    Real* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
+    for_layer(z, sign, [&](std::size_t k, std::size_t at) { g[at] = static_cast<Real>(in[k]); });
   }
 
   // In place: f_m(q) is g_m(q - c_m), and each (m, q) owns its entry, so rows run in parallel.
@@ -378,6 +399,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
  private:
+  std::vector<double> layer_sums_;  // the last measure(): per system and interior layer, kReduceSlots sums
+
   struct Slot {
     SystemSpec spec;
     AlignedBuffer<Real> state;  // both time levels: 2 x 19 direction arrays, stride apart
@@ -398,6 +421,18 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   long long state_index(int x, int y, int z) const {
     return (static_cast<long long>(z) * d_.ny + y) * pitch_ + x + (kLine - 1);
+  }
+
+  // visit(k, state offset) over SlabHalo's layer order.
+  template <typename Visit>
+  void for_layer(int z, int sign, Visit&& visit) const {
+    std::size_t k = 0;
+    for (int m = 1; m < kQ; ++m) {
+      if (d3q19::cz(m) != sign) continue;
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x)
+          visit(k++, static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z)));
+    }
   }
 
   // f_m(q) = g_m(q - c_m): the pre-collision values of node q.

@@ -157,6 +157,9 @@ class Backend {
   // True when the solver keeps the host's cores busy (OpenMP); false when the host mostly waits
   // on a device, so a bake can write its output on another thread meanwhile.
   virtual bool occupies_host_cores() const = 0;
+  // False on the ranks of a distributed backend that only solve their part: they run the same
+  // bake, and one rank writes its output.
+  virtual bool writes_output() const { return true; }
   // Memory one system needs, and what the device has free, for planning batches.
   virtual std::size_t bytes_per_system(const Dims& dims, Precision p) const = 0;
   virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;
