@@ -65,11 +65,13 @@ class MpiSlabSolver final : public LatticeSolver {
         rank_(rank), ranks_(ranks), local_{whole.nx, whole.ny, slab.last - slab.first + 3} {
     if (!halo_) throw std::logic_error("MPI backend: the CPU solver offers no layer exchange");
     layer_ = SlabHalo::layer_values(local_);
+    up_ = rank_ + 1 < ranks_ ? rank_ + 1 : -1;
+    down_ = rank_ > 0 ? rank_ - 1 : -1;
   }
   ~MpiSlabSolver() override {
     if (rank_ == 0 && steps_ > 0)
-      spdlog::info("MPI: {} rank(s), {} steps: stepping {:.3g} s, halo exchange {:.3g} s ({:.0f}% of the two, waiting "
-                   "for the neighbours included; {} bytes per step and system each way)",
+      spdlog::info("MPI: {} rank(s), {} steps: stepping {:.3g} s, halo exchange {:.3g} s ({:.0f}% of the two: packing, "
+                   "storing and the wait left after the inner layers' sweep; {} bytes per step and system each way)",
                    ranks_, steps_, step_seconds_, halo_seconds_,
                    100.0 * halo_seconds_ / std::max(1e-12, step_seconds_ + halo_seconds_), layer_ * sizeof(double));
   }
@@ -85,23 +87,47 @@ class MpiSlabSolver final : public LatticeSolver {
       if (rank_ > 0) halo_->write_layer(s, 0, +1, zeros.data());
       if (rank_ + 1 < ranks_) halo_->write_layer(s, local_.nz - 1, -1, zeros.data());
     }
+    ghosts_current_ = true;
   }
 
+  // Each step: the edge layers leave for the neighbours while the slab's inner layers are swept;
+  // then the ghosts arrive and the two edge layers are swept (bit for bit the whole step).
   void step(int steps) override {
-    for (int t = 0; t < steps; ++t) {
+    for (int t = 0; t < steps; ++t, ++steps_) {
       auto t0 = std::chrono::steady_clock::now();
-      inner_->step(1);
+      if (ranks_ == 1) {
+        inner_->step(1);
+        step_seconds_ += seconds_since(t0);
+        continue;
+      }
+      const bool exchange = !ghosts_current_;  // measure() may have brought them already
+      if (exchange) begin_exchange();
+      halo_seconds_ += seconds_since(t0);
+      t0 = std::chrono::steady_clock::now();
+      const int top = local_.nz - 2;
+      if (top - 1 >= 2) halo_->step_layers(2, top - 1);
       step_seconds_ += seconds_since(t0);
       t0 = std::chrono::steady_clock::now();
-      exchange();
+      if (exchange) finish_exchange();
       halo_seconds_ += seconds_since(t0);
-      ++steps_;
+      t0 = std::chrono::steady_clock::now();
+      halo_->step_layers(1, 1);
+      if (top > 1) halo_->step_layers(top, top);
+      halo_->end_step();
+      ghosts_current_ = false;
+      step_seconds_ += seconds_since(t0);
     }
   }
 
   // Every rank gathers every layer's sums and combines them in z order, as one CPU solver does
   // for the whole lattice: the same residuals, bit for bit, for any number of ranks.
   void measure(std::vector<Residual>& out) override {
+    if (!ghosts_current_) {  // the edge layers' totals take light from the ghosts
+      const auto t0 = std::chrono::steady_clock::now();
+      begin_exchange();
+      finish_exchange();
+      halo_seconds_ += seconds_since(t0);
+    }
     std::vector<Residual> local;
     inner_->measure(local);
     const int layers = slab_.last - slab_.first + 1, all_layers = whole_.nz - 2;
@@ -145,31 +171,34 @@ class MpiSlabSolver final : public LatticeSolver {
   std::size_t bytes_in_use() const override { return inner_->bytes_in_use(); }
 
  private:
-  // The 5 directions crossing each face, all systems in one message per neighbour; blocking
-  // until both arrive (the step needs them).
-  void exchange() {
-    if (ranks_ == 1) return;
+  // The 5 directions crossing each face, all systems in one message per neighbour, non-blocking.
+  void begin_exchange() {
     const std::size_t n = layer_ * static_cast<std::size_t>(active_);
     send_up_.resize(n), send_down_.resize(n), recv_up_.resize(n), recv_down_.resize(n);
-    MPI_Request req[4];
-    int count = 0;
-    const int up = rank_ + 1 < ranks_ ? rank_ + 1 : -1, down = rank_ > 0 ? rank_ - 1 : -1;
-    if (up >= 0) {
+    requests_ = 0;
+    if (ranks_ == 1) return;
+    if (up_ >= 0) {
       for (int s = 0; s < active_; ++s) halo_->read_layer(s, local_.nz - 2, +1, send_up_.data() + s * layer_);
-      check(MPI_Irecv(recv_up_.data(), static_cast<int>(n), MPI_DOUBLE, up, 1, MPI_COMM_WORLD, &req[count++]), "receive");
-      check(MPI_Isend(send_up_.data(), static_cast<int>(n), MPI_DOUBLE, up, 0, MPI_COMM_WORLD, &req[count++]), "send");
-    }
-    if (down >= 0) {
-      for (int s = 0; s < active_; ++s) halo_->read_layer(s, 1, -1, send_down_.data() + s * layer_);
-      check(MPI_Irecv(recv_down_.data(), static_cast<int>(n), MPI_DOUBLE, down, 0, MPI_COMM_WORLD, &req[count++]),
+      check(MPI_Irecv(recv_up_.data(), static_cast<int>(n), MPI_DOUBLE, up_, 1, MPI_COMM_WORLD, &req_[requests_++]),
             "receive");
-      check(MPI_Isend(send_down_.data(), static_cast<int>(n), MPI_DOUBLE, down, 1, MPI_COMM_WORLD, &req[count++]),
+      check(MPI_Isend(send_up_.data(), static_cast<int>(n), MPI_DOUBLE, up_, 0, MPI_COMM_WORLD, &req_[requests_++]),
             "send");
     }
-    check(MPI_Waitall(count, req, MPI_STATUSES_IGNORE), "halo exchange");
+    if (down_ >= 0) {
+      for (int s = 0; s < active_; ++s) halo_->read_layer(s, 1, -1, send_down_.data() + s * layer_);
+      check(MPI_Irecv(recv_down_.data(), static_cast<int>(n), MPI_DOUBLE, down_, 0, MPI_COMM_WORLD, &req_[requests_++]),
+            "receive");
+      check(MPI_Isend(send_down_.data(), static_cast<int>(n), MPI_DOUBLE, down_, 1, MPI_COMM_WORLD, &req_[requests_++]),
+            "send");
+    }
+  }
+  // Waits for the ghosts (the time left after the inner layers' sweep) and stores them.
+  void finish_exchange() {
+    check(MPI_Waitall(requests_, req_, MPI_STATUSES_IGNORE), "halo exchange");
+    ghosts_current_ = true;
     for (int s = 0; s < active_; ++s) {
-      if (up >= 0) halo_->write_layer(s, local_.nz - 1, -1, recv_up_.data() + s * layer_);
-      if (down >= 0) halo_->write_layer(s, 0, +1, recv_down_.data() + s * layer_);
+      if (up_ >= 0) halo_->write_layer(s, local_.nz - 1, -1, recv_up_.data() + s * layer_);
+      if (down_ >= 0) halo_->write_layer(s, 0, +1, recv_down_.data() + s * layer_);
     }
   }
 
@@ -183,7 +212,11 @@ class MpiSlabSolver final : public LatticeSolver {
   int active_ = 0;
   long long steps_ = 0;
   double step_seconds_ = 0, halo_seconds_ = 0;
+  int up_ = -1, down_ = -1;  // neighbour ranks, -1 at the lattice's ends
+  bool ghosts_current_ = true;  // the ghosts hold the neighbours' current level
   std::vector<double> send_up_, send_down_, recv_up_, recv_down_;
+  MPI_Request req_[4];
+  int requests_ = 0;
 };
 
 class MpiBackend final : public Backend {

@@ -292,6 +292,15 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     return layer_sums_.data() + static_cast<std::size_t>(system) * (d_.nz - 2) * kReduceSlots;
   }
 
+  void step_layers(int z_lo, int z_hi) override {
+    if (now_ > 0)
+      for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)], z_lo, z_hi);
+  }
+  void end_step() override {
+    if (now_ > 0) cur_ = 1 - cur_;
+    ++now_;
+  }
+
   void read_layer(int system, int z, int sign, double* out) const override {
     const Real* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
     for_layer(z, sign, [&](std::size_t k, std::size_t at) { out[k] = static_cast<double>(g[at]); });
@@ -482,14 +491,18 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         for (int x = 0; x < d_.nx; ++x) t[d_.index(x, y, z)] = initial_total(d_, x, y, z, boundary_total);
   }
 
-  void step_system(Slot& slot) { sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_)); }
+  void step_system(Slot& slot, int z_lo = 1, int z_hi = -1) {
+    sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_), z_lo, z_hi);
+  }
 
-  // One pull step from level src to level dst with the materials of slot's channel.
-  void sweep_system(const Slot& slot, const Real* src, Real* dst) const {
+  // One pull step from level src to level dst with the materials of slot's channel, over the
+  // layers z_lo..z_hi (-1: the last interior one).
+  void sweep_system(const Slot& slot, const Real* src, Real* dst, int z_lo = 1, int z_hi = -1) const {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
-    if (stream_) sweep<true>(src, dst, ops, absorb_bits);
-    else sweep<false>(src, dst, ops, absorb_bits);
+    if (z_hi < 0) z_hi = d_.nz - 2;
+    if (stream_) sweep<true>(src, dst, ops, absorb_bits, z_lo, z_hi);
+    else sweep<false>(src, dst, ops, absorb_bits, z_lo, z_hi);
   }
 
   Real* vec(int v) { return vectors_.at(static_cast<std::size_t>(v)).data(); }
@@ -511,13 +524,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   template <bool kStream>
   void sweep(const Real* src, Real* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
-             unsigned absorb_bits) const {
+             unsigned absorb_bits, int z_lo, int z_hi) const {
     const int rows_y = d_.ny - 2;
 #pragma omp parallel num_threads(threads_)
     {
       const ScopedFlushDenormals ftz(flush_denormals_);
 #pragma omp for collapse(2) schedule(dynamic, 8)
-      for (int z = 1; z < d_.nz - 1; ++z)
+      for (int z = z_lo; z <= z_hi; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
           const std::size_t r = static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1);
           const unsigned mask = row_mask_[r];
