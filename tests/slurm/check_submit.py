@@ -4,7 +4,8 @@ scene and the forest example (models and coarse forest lattices) baked as a job 
 equal a one-machine bake bit for bit; a unit made to fail
 cancels the merge (it does not hang) and shows as failed in `lblight status`; `submit --resume` reruns
 only that unit (its log says it baked, no other unit ran) and the result is still identical; the
-merge refuses a partial of another scene. Skipped (exit 77, saying why) where Slurm cannot be
+merge refuses a partial of another scene; the forest baked across 2 MPI ranks under
+`srun --mpi=pmix` (`--backend mpi`) equals its one-machine bake. Skipped (exit 77, saying why) where Slurm cannot be
 installed or started.
 
 usage: check_submit.py LBLIGHT SOURCE_DIR WORK_DIR"""
@@ -166,6 +167,23 @@ def checks():
     same = run(lblight, "compare", "--exact", work / "forest-single", work / "forest-sub" / "bake", expect=None)
     print(same.stdout, end="")
     check(same.returncode == 0, "the forest's merged bake equals its one-machine bake bit for bit")
+
+    # One lattice across 2 MPI ranks inside the allocation (srun --mpi=pmix, --backend mpi): the same
+    # bits as the one-machine bake of the forest's B06 (skipped where lblight was built without MPI).
+    probe = run(lblight, "bake", other_scene, "--backend", "mpi", "--solutions", "6", "-o", work / "mpi-probe",
+                expect=None)
+    if "built without MPI" in probe.stderr:
+        print("skipped: srun --mpi=pmix (lblight was built without MPI)", flush=True)
+    else:
+        r = run("srun", "--mpi=pmix", "-n", "2", "-c", "1", "--time", "5", lblight, "bake", forest, *forest_args,
+                "--backend", "mpi", "--threads", "1", "-o", work / "forest-srun", expect=None)
+        check(r.returncode == 0 and "MPI, 2 rank(s)" in r.stderr,
+              "srun --mpi=pmix -n 2 bakes the forest with --backend mpi: " + r.stderr[-300:])
+        same = run(lblight, "compare", "--exact", work / "forest-single", work / "forest-srun", expect=None)
+        diffs = [l for l in same.stdout.splitlines() if l.startswith("differs:")]
+        check(diffs == ["differs: manifest /backend/name (replace)"],
+              "2 MPI ranks under srun equal the one-machine bake bit for bit but the backend's name: " +
+              "; ".join(diffs[:5]))
 
     # A partial of another scene is refused by name, and nothing is written.
     run(lblight, "-q", "bake", other_scene, "--only", "tree", "-o", work / "foreign")
