@@ -71,7 +71,7 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
   if (!backend->supports(plan.precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
-                      "; allowed: float32 or float64 on cpu, float32 or float16 on cuda",
+                      "; allowed: float32, float64 or float16 on cpu (float16 where the compiler has _Float16), float32 or float16 on cuda",
                   {scene.file.string(), "/solver/precision", {}});
 
   // A distributed backend's other ranks run the same bake into a folder of their own, removed after.

@@ -20,6 +20,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -42,6 +43,15 @@ namespace lblight {
 namespace {
 
 using d3q19::kQ;
+
+// float16 storage needs the compiler's _Float16 (GCC 12 and Clang on x86-64; conversions in one
+// instruction with F16C, which -march=native enables where the CPU has it).
+#if defined(__FLT16_MANT_DIG__)
+#define LBLIGHT_CPU_FLOAT16 1
+constexpr bool kHasFloat16 = true;
+#else
+constexpr bool kHasFloat16 = false;
+#endif
 
 // One cache line from an aligned buffer to aligned memory, bypassing the caches.
 template <typename Real>
@@ -106,10 +116,56 @@ inline void stream_fence() {
 #endif
 }
 
-template <typename Real>
+// N 16-bit floats (any alignment) to Real and back (to 32-byte aligned memory), rounding to
+// nearest even as the GPU's __float2half_rn does. With AVX-512 or F16C one instruction converts
+// 16 or 8 values; GCC 12 does not vectorise _Float16 conversions itself. Real = Store needs none.
+template <int N, typename Real, typename Half>
+inline void halves_to_reals(const Half* in, Real* out) {
+#if LBL_X86 && defined(__AVX512F__)
+  if constexpr (std::is_same_v<Real, float> && N % 16 == 0 && sizeof(Half) == 2) {
+    for (int i = 0; i < N; i += 16)
+      _mm512_store_ps(out + i, _mm512_mask_cvtph_ps(_mm512_setzero_ps(), 0xFFFF,  // masked: GCC 12 warns
+                                                   _mm256_loadu_si256(reinterpret_cast<const __m256i*>(in + i))));  // on the plain one
+    return;
+  }
+#elif LBL_X86 && defined(__F16C__)
+  if constexpr (std::is_same_v<Real, float> && N % 8 == 0 && sizeof(Half) == 2) {
+    for (int i = 0; i < N; i += 8)
+      _mm256_store_ps(out + i, _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(in + i))));
+    return;
+  }
+#endif
+  for (int i = 0; i < N; ++i) out[i] = static_cast<Real>(in[i]);
+}
+template <int N, typename Real, typename Half>
+inline void reals_to_halves(const Real* in, Half* out) {
+#if LBL_X86 && defined(__AVX512F__)
+  if constexpr (std::is_same_v<Real, float> && N % 16 == 0 && sizeof(Half) == 2) {
+    for (int i = 0; i < N; i += 16)
+      _mm256_store_si256(reinterpret_cast<__m256i*>(out + i),
+                         _mm512_mask_cvtps_ph(_mm256_setzero_si256(), 0xFFFF, _mm512_load_ps(in + i),
+                                              _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+    return;
+  }
+#elif LBL_X86 && defined(__F16C__)
+  if constexpr (std::is_same_v<Real, float> && N % 8 == 0 && sizeof(Half) == 2) {
+    for (int i = 0; i < N; i += 8)
+      _mm_store_si128(reinterpret_cast<__m128i*>(out + i),
+                      _mm256_cvtps_ph(_mm256_load_ps(in + i), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+    return;
+  }
+#endif
+  for (int i = 0; i < N; ++i) out[i] = static_cast<Half>(in[i]);
+}
+
+// Real: the arithmetic; Store: the state's storage (Real, or _Float16 rounded to nearest even as
+// the GPU's float16 mode stores, arithmetic still in float).
+template <typename Real, typename Store = Real>
 class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess, public SlabHalo {
   // One SIMD chunk = one cache line of one direction array.
-  static constexpr int kLine = 64 / static_cast<int>(sizeof(Real));
+  static constexpr int kLine = 64 / static_cast<int>(sizeof(Store));
+  // Non-temporal stores write whole lines of the arithmetic type: only when it is the storage's.
+  static constexpr bool kCanStream = std::is_same_v<Real, Store>;
 
  public:
   CpuLatticeSolver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity,
@@ -160,7 +216,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         slot.totals.allocate(n_);
         slot.scratch.allocate(n_);
       }
-      fill(slot.state.data(), 2 * kQ * stride_, Real(0));
+      fill(slot.state.data(), 2 * kQ * stride_, Store(0));
       for (int level = 0; level < 2; ++level) set_boundary(slot, level);
       const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
       init_totals(slot.totals.data(), total);
@@ -168,9 +224,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
     now_ = 0;
     cur_ = 0;
-    const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Real);
-    stream_ = stores_ == StoreMode::Streaming ||
-              (stores_ == StoreMode::Auto && state_bytes > 2.0 * static_cast<double>(host_last_level_cache_bytes()));
+    const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Store);
+    stream_ = kCanStream &&
+              (stores_ == StoreMode::Streaming ||
+               (stores_ == StoreMode::Auto && state_bytes > 2.0 * static_cast<double>(host_last_level_cache_bytes())));
   }
 
   void step(int steps) override {
@@ -196,7 +253,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     layer_sums_.assign(static_cast<std::size_t>(active_) * rows_z * kReduceSlots, 0.0);
     for (int s = 0; s < active_; ++s) {
       Slot& slot = slots_[static_cast<std::size_t>(s)];
-      const Real* g = slot.buffer(cur_);
+      const Store* g = slot.buffer(cur_);
       const Real* prev = slot.totals.data();
       Real* next = slot.scratch.data();
       const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
@@ -244,7 +301,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void read_state(int system, std::vector<double>& f) const override {
     const Slot& slot = slots_.at(static_cast<std::size_t>(system));
     f.assign(kQ * n_, 0.0);
-    const Real* g = slot.buffer(cur_);
+    const Store* g = slot.buffer(cur_);
     const int nx = d_.nx;
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
     for (int m = 0; m < kQ; ++m)
@@ -259,7 +316,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           }
           out[0] = out[nx - 1] = b;
           if (now_ == 0) continue;  // the interior is 0 before the first step
-          const Real* src = g + static_cast<std::size_t>(m) * stride_ + (state_index(0, y, z) - shift);
+          const Store* src = g + static_cast<std::size_t>(m) * stride_ + (state_index(0, y, z) - shift);
           for (int x = 1; x < nx - 1; ++x) out[x] = static_cast<double>(src[x]);
         }
       }
@@ -271,7 +328,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
     if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
-    Real* g = slot.buffer(cur_);
+    Store* g = slot.buffer(cur_);
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
     for (int m = 0; m < kQ; ++m)
       for (int z = 1; z < d_.nz - 1; ++z) {
@@ -282,8 +339,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         for (int y = 1; y < d_.ny - 1; ++y) {
           if (y - cy < 1 || y - cy > d_.ny - 2) continue;
           const double* in = f.data() + static_cast<std::size_t>(m) * n_ + d_.index(0, y, z);
-          Real* dst = g + static_cast<std::size_t>(m) * stride_ + state_index(-cx, y - cy, z - cz);
-          for (int x = x0; x <= x1; ++x) dst[x] = static_cast<Real>(in[x]);
+          Store* dst = g + static_cast<std::size_t>(m) * stride_ + state_index(-cx, y - cy, z - cz);
+          for (int x = x0; x <= x1; ++x) dst[x] = static_cast<Store>(in[x]);
         }
       }
   }
@@ -302,12 +359,12 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   void read_layer(int system, int z, int sign, double* out) const override {
-    const Real* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
+    const Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
     for_layer(z, sign, [&](std::size_t k, std::size_t at) { out[k] = static_cast<double>(g[at]); });
   }
   void write_layer(int system, int z, int sign, const double* in) override {
-    Real* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
-    for_layer(z, sign, [&](std::size_t k, std::size_t at) { g[at] = static_cast<Real>(in[k]); });
+    Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
+    for_layer(z, sign, [&](std::size_t k, std::size_t at) { g[at] = static_cast<Store>(in[k]); });
   }
 
   // In place: f_m(q) is g_m(q - c_m), and each (m, q) owns its entry, so rows run in parallel.
@@ -316,7 +373,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (phi.size() != n_) throw std::invalid_argument("add_mode: wrong size");
     if (now_ == 0) now_ = 1;  // as write_state
-    Real* g = slot.buffer(cur_);
+    Store* g = slot.buffer(cur_);
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
     for (int z = 1; z < d_.nz - 1; ++z)
       for (int y = 1; y < d_.ny - 1; ++y)
@@ -328,16 +385,16 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           for (int m = 0; m < kQ; ++m) {
             const int px = x - d3q19::cx(m), py = y - d3q19::cy(m), pz = z - d3q19::cz(m);
             if (d_.is_boundary(px, py, pz)) continue;
-            Real& e = g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(px, py, pz))];
-            e = static_cast<Real>(static_cast<double>(e) + sh[m] * v);
+            Store& e = g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(px, py, pz))];
+            e = static_cast<Store>(static_cast<double>(e) + sh[m] * v);
           }
         }
   }
 
   std::size_t bytes_in_use() const override {
     std::size_t bytes = density_.size() * sizeof(float) + material_.size() + wood_.size() * sizeof(float);
-    for (const Slot& s : slots_) bytes += (s.state.size() + s.totals.size() + s.scratch.size()) * sizeof(Real);
-    for (const auto& v : vectors_) bytes += v.size() * sizeof(Real);
+    for (const Slot& s : slots_) bytes += s.state.size() * sizeof(Store) + (s.totals.size() + s.scratch.size()) * sizeof(Real);
+    for (const auto& v : vectors_) bytes += v.size() * sizeof(Store);
     return bytes;
   }
 
@@ -349,7 +406,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     vectors_.resize(static_cast<std::size_t>(count));
     for (std::size_t v = first; v < vectors_.size(); ++v) {
       vectors_[v].allocate(kQ * stride_);
-      fill(vectors_[v].data(), kQ * stride_, Real(0));
+      fill(vectors_[v].data(), kQ * stride_, Store(0));
     }
   }
 
@@ -370,27 +427,27 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     // b = T(0): one step from a zero interior with the real boundary values, built in the
     // free time level.
     Slot& slot = slots_.front();
-    Real* zero = slot.buffer(1 - cur_);
-    fill(zero, kQ * stride_, Real(0));
+    Store* zero = slot.buffer(1 - cur_);
+    fill(zero, kQ * stride_, Store(0));
     set_boundary(slot, 1 - cur_);
-    fill(vec(v), kQ * stride_, Real(0));
+    fill(vec(v), kQ * stride_, Store(0));
     sweep_system(slot, zero, vec(v));
   }
 
   void vector_apply(int x, int y) override { sweep_system(slots_.front(), vec(x), vec(y)); }
 
   void vector_axpby(double a, int x, double b, int y) override {
-    const Real* __restrict px = vec(x);
-    Real* __restrict py = vec(y);
+    const Store* __restrict px = vec(x);
+    Store* __restrict py = vec(y);
     const Real ra = static_cast<Real>(a), rb = static_cast<Real>(b);
     const std::size_t n = kQ * stride_;
 #pragma omp parallel for simd schedule(static) num_threads(threads_)
-    for (std::size_t i = 0; i < n; ++i) py[i] = ra * px[i] + rb * py[i];
+    for (std::size_t i = 0; i < n; ++i) py[i] = static_cast<Store>(ra * static_cast<Real>(px[i]) + rb * static_cast<Real>(py[i]));
   }
 
   double vector_dot(int x, int y) override {
-    const Real* px = vec(x);
-    const Real* py = vec(y);
+    const Store* px = vec(x);
+    const Store* py = vec(y);
     const std::size_t n = kQ * stride_;
     constexpr std::size_t kBlock = 1 << 14;  // fixed blocks, added in order: thread-count independent
     const std::size_t blocks = (n + kBlock - 1) / kBlock;
@@ -412,11 +469,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   struct Slot {
     SystemSpec spec;
-    AlignedBuffer<Real> state;  // both time levels: 2 x 19 direction arrays, stride apart
+    AlignedBuffer<Store> state;  // both time levels: 2 x 19 direction arrays, stride apart
     AlignedBuffer<Real> totals, scratch;
     std::size_t stride = 0;
-    Real* buffer(int level) { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
-    const Real* buffer(int level) const { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
+    Store* buffer(int level) { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
+    const Store* buffer(int level) const { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
   };
 
   // Direction arrays a multiple of 4 KiB apart alias in the CPU's store-to-load checks and
@@ -424,7 +481,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // arrays over distinct 64-byte slots modulo 4 KiB avoids that.
   static std::size_t padded_stride(std::size_t count) {
     std::size_t s = (count + kLine - 1) / kLine * kLine;
-    while ((s * sizeof(Real)) % 4096 != 320) s += kLine;
+    while ((s * sizeof(Store)) % 4096 != 320) s += kLine;
     return s;
   }
 
@@ -445,10 +502,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // f_m(q) = g_m(q - c_m): the pre-collision values of node q.
-  void gather(const Real* g, long long q, Real (&f)[kQ]) const {
+  void gather(const Store* g, long long q, Real (&f)[kQ]) const {
     for (int m = 0; m < kQ; ++m)
-      f[m] = g[static_cast<std::size_t>(m) * stride_ +
-               static_cast<std::size_t>(q - d3q19::cx(m) - d3q19::cy(m) * pitch_ - d3q19::cz(m) * plane_)];
+      f[m] = static_cast<Real>(g[static_cast<std::size_t>(m) * stride_ +
+                                 static_cast<std::size_t>(q - d3q19::cx(m) - d3q19::cy(m) * pitch_ - d3q19::cz(m) * plane_)]);
   }
 
   // Which materials each interior row holds; rows of one material run the plain collision,
@@ -469,20 +526,21 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       }
   }
 
-  void fill(Real* p, std::size_t count, Real v) const {
+  template <typename T>
+  void fill(T* p, std::size_t count, T v) const {
 #pragma omp parallel for schedule(static) num_threads(threads_)
     for (std::size_t i = 0; i < count; ++i) p[i] = v;
   }
 
   void set_boundary(const Slot& slot, int level) const {
-    Real* g = const_cast<Real*>(slot.buffer(level));
+    Store* g = const_cast<Store*>(slot.buffer(level));
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x)
           if (d_.is_boundary(x, y, z))
             for (int m = 0; m < kQ; ++m)
               g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z))] =
-                  static_cast<Real>(slot.spec.boundary[m]);
+                  static_cast<Store>(slot.spec.boundary[m]);
   }
 
   void init_totals(Real* t, Real boundary_total) const {
@@ -497,7 +555,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   // One pull step from level src to level dst with the materials of slot's channel, over the
   // layers z_lo..z_hi (-1: the last interior one).
-  void sweep_system(const Slot& slot, const Real* src, Real* dst, int z_lo = 1, int z_hi = -1) const {
+  void sweep_system(const Slot& slot, const Store* src, Store* dst, int z_lo = 1, int z_hi = -1) const {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     if (z_hi < 0) z_hi = d_.nz - 2;
@@ -505,25 +563,25 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     else sweep<false>(src, dst, ops, absorb_bits, z_lo, z_hi);
   }
 
-  Real* vec(int v) { return vectors_.at(static_cast<std::size_t>(v)).data(); }
+  Store* vec(int v) { return vectors_.at(static_cast<std::size_t>(v)).data(); }
 
-  void copy(const Real* src, Real* dst) const {
+  void copy(const Store* src, Store* dst) const {
     const std::size_t n = kQ * stride_;
 #pragma omp parallel for simd schedule(static) num_threads(threads_)
     for (std::size_t i = 0; i < n; ++i) dst[i] = src[i];
   }
 
-  void zero_boundary(Real* g) const {
+  void zero_boundary(Store* g) const {
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x)
           if (d_.is_boundary(x, y, z))
             for (int m = 0; m < kQ; ++m)
-              g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z))] = Real(0);
+              g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z))] = Store(0);
   }
 
   template <bool kStream>
-  void sweep(const Real* src, Real* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
+  void sweep(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
              unsigned absorb_bits, int z_lo, int z_hi) const {
     const int rows_y = d_.ny - 2;
 #pragma omp parallel num_threads(threads_)
@@ -553,52 +611,84 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // end at nx-2: it recomputes a few nodes (same inputs, same outputs) instead of running a
   // scalar tail, which would cost more than the rest of the row.
   template <bool kStream, typename Node>
-  LBL_FORCEINLINE void run_row(Real* __restrict dst, int y, int z, Node&& node) const {
+  LBL_FORCEINLINE void run_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Node&& node) const {
     const int nx = d_.nx;
     const long long srow = state_index(0, y, z);
     const long long stride = static_cast<long long>(stride_);
+    auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA { gather_row(src, srow, x, f); };
     if (nx - 2 < kLine) {
-      Real* __restrict out = dst + srow;
+      Store* __restrict out = dst + srow;
 #pragma omp simd
-      for (int x = 1; x < nx - 1; ++x) node(x, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = v; });
+      for (int x = 1; x < nx - 1; ++x)
+        node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = static_cast<Store>(v); });
       return;
     }
     int x0 = 1;
     for (; x0 + kLine - 1 <= nx - 2; x0 += kLine) {
-      Real* __restrict out = dst + srow + x0;
-      if constexpr (kStream) {
+      Store* __restrict out = dst + srow + x0;
+      if constexpr (!kCanStream) {
+        converted_chunk(src, out, srow + x0, x0, node);
+      } else if constexpr (kStream) {
         alignas(64) Real post[kQ][kLine];
 #pragma omp simd
-        for (int l = 0; l < kLine; ++l) node(x0 + l, [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
+        for (int l = 0; l < kLine; ++l) node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
         for (int m = 0; m < kQ; ++m) stream_line(out + m * stride, post[m]);
       } else {
 #pragma omp simd
-        for (int l = 0; l < kLine; ++l) node(x0 + l, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = v; });
+        for (int l = 0; l < kLine; ++l)
+          node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
       }
     }
     if (x0 <= nx - 2) {
       const int xs = nx - 1 - kLine;
-      Real* __restrict out = dst + srow + xs;
+      Store* __restrict out = dst + srow + xs;
+      if constexpr (!kCanStream) {
+        converted_chunk(src, out, srow + xs, xs, node);
+      } else {
 #pragma omp simd
-      for (int l = 0; l < kLine; ++l) node(xs + l, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = v; });
+        for (int l = 0; l < kLine; ++l)
+          node(xs + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
+      }
     }
   }
 
+  // 16-bit storage: the chunk's 19 source segments are converted to the arithmetic type first,
+  // the nodes run on them, and their results are converted back, 16 values per instruction
+  // (halves_to_reals). at: the state index of the chunk's first node, x0 its x.
+  template <typename Node>
+  LBL_FORCEINLINE void converted_chunk(const Store* __restrict src, Store* __restrict out, long long at, int x0,
+                                       Node&& node) const {
+    alignas(64) Real stage[kQ][kLine];
+    alignas(64) Real post[kQ][kLine];
+    const long long stride = static_cast<long long>(stride_), pitch = pitch_, plane = plane_;
+    for (int m = 0; m < kQ; ++m)
+      halves_to_reals<kLine>(src + m * stride + at - d3q19::cx(m) - d3q19::cy(m) * pitch - d3q19::cz(m) * plane, stage[m]);
+#pragma omp simd
+    for (int l = 0; l < kLine; ++l)
+      node(
+          x0 + l,
+          [&](int, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+            LBL_UNROLL
+            for (int m = 0; m < kQ; ++m) f[m] = stage[m][l];
+          },
+          [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
+    for (int m = 0; m < kQ; ++m) reals_to_halves<kLine>(post[m], out + m * stride);
+  }
+
   // Gathers f for node x of the row whose state starts at `row` (in the source level).
-  LBL_FORCEINLINE void gather_row(const Real* __restrict src, long long row, int x, Real (&f)[kQ]) const {
+  LBL_FORCEINLINE void gather_row(const Store* __restrict src, long long row, int x, Real (&f)[kQ]) const {
     const long long stride = static_cast<long long>(stride_), pitch = pitch_, plane = plane_;
     LBL_UNROLL
     for (int m = 0; m < kQ; ++m)
-      f[m] = src[m * stride + row + x - d3q19::cx(m) - d3q19::cy(m) * pitch - d3q19::cz(m) * plane];
+      f[m] = static_cast<Real>(src[m * stride + row + x - d3q19::cx(m) - d3q19::cy(m) * pitch - d3q19::cz(m) * plane]);
   }
 
   // Row with no medium: collision is the identity, only streaming remains.
   template <bool kStream>
-  void stream_row(const Real* __restrict src, Real* __restrict dst, int y, int z, Real keep) const {
-    const long long row = state_index(0, y, z);
-    run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
+  void stream_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Real keep) const {
+    run_row<kStream>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
-      gather_row(src, row, x, f);
+      load(x, f);
       f[0] *= keep;
       LBL_UNROLL
       for (int m = 0; m < kQ; ++m) sink(m, f[m]);
@@ -606,13 +696,12 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   template <bool kStream>
-  void uniform_row(const Real* __restrict src, Real* __restrict dst, int y, int z, const CollisionOp<Real>& op,
+  void uniform_row(const Store* __restrict src, Store* __restrict dst, int y, int z, const CollisionOp<Real>& op,
                    Real keep) const {
-    const long long row = state_index(0, y, z);
     const float* __restrict rho = density_.data() + d_.index(0, y, z);
-    run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
+    run_row<kStream>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
-      gather_row(src, row, x, f);
+      load(x, f);
       collide_node(op, keep, static_cast<Real>(rho[x]), f, sink);
     });
   }
@@ -623,9 +712,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // treatment. (A GPU simply picks the node's operator; this form is what GCC vectorises:
   // operator selection, integer compares and byte loads in the loop all stop it.)
   template <bool kStream>
-  void mixed_row(const Real* __restrict src, Real* __restrict dst, int y, int z,
+  void mixed_row(const Store* __restrict src, Store* __restrict dst, int y, int z,
                  const std::array<CollisionOp<Real>, kMaxMaterials>& ops, unsigned absorb_bits) const {
-    const long long row = state_index(0, y, z);
     const std::size_t base = d_.index(0, y, z);
     const float* __restrict density = density_.data() + base;
     const float* __restrict wood = wood_.data() + base;
@@ -633,9 +721,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const Real keep1 = f0_keep<Real>(absorb_bits, kMaterialWood);
     const CollisionOp<Real>& medium = ops[kMaterialMedium];
     const CollisionOp<Real>& woody = ops[kMaterialWood];
-    run_row<kStream>(dst, y, z, [&](int x, auto&& sink) LBL_INLINE_LAMBDA {
+    run_row<kStream>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
-      gather_row(src, row, x, f);
+      load(x, f);
       const Real w = static_cast<Real>(wood[x]);
       const Real rho = static_cast<Real>(density[x]);
       const Real keep = keep0 + (keep1 - keep0) * w;
@@ -665,7 +753,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   long long pitch_ = 0, plane_ = 0;       // padded row and plane lengths of the state
   std::size_t stride_ = 0;                // elements between direction arrays
   std::vector<Slot> slots_;
-  std::vector<AlignedBuffer<Real>> vectors_;  // Krylov vectors
+  std::vector<AlignedBuffer<Store>> vectors_;  // Krylov vectors
   int active_ = 0;
   long long now_ = 0;  // steps since reset
   int cur_ = 0;        // level holding g(now - 1): f(now) = gather from it
@@ -679,13 +767,13 @@ class OpenMpBackend final : public Backend {
   std::string description() const override {
     return "OpenMP, " + std::to_string(threads_) + " thread" + (threads_ == 1 ? "" : "s") + ", " + host_cpu_model();
   }
-  bool supports(Precision p) const override { return p != Precision::Float16; }
+  bool supports(Precision p) const override { return p != Precision::Float16 || kHasFloat16; }
   bool occupies_host_cores() const override { return true; }
   std::size_t bytes_per_system(const Dims& d, Precision p) const override {
-    const std::size_t v = p == Precision::Float64 ? 8 : 4;
-    const std::size_t padded = static_cast<std::size_t>(d.nx + 32) * static_cast<std::size_t>(d.ny) *
+    const std::size_t v = static_cast<std::size_t>(bytes_per_value(p)), totals = p == Precision::Float64 ? 8 : 4;
+    const std::size_t padded = static_cast<std::size_t>(d.nx + 64) * static_cast<std::size_t>(d.ny) *
                                static_cast<std::size_t>(d.nz);
-    return (2 * kQ * padded + 2 * d.count()) * v;
+    return 2 * kQ * padded * v + 2 * d.count() * totals;
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return host_memory_limit().bytes; }
@@ -702,8 +790,14 @@ class OpenMpBackend final : public Backend {
       case Precision::Float64:
         return std::make_unique<CpuLatticeSolver<double>>(g, channels, capacity, threads_, options.stores,
                                                            options.flush_denormals);
+#if LBLIGHT_CPU_FLOAT16
+      case Precision::Float16:
+        return std::make_unique<CpuLatticeSolver<float, _Float16>>(g, channels, capacity, threads_, options.stores,
+                                                                   options.flush_denormals);
+#endif
       default:
-        throw Error(ErrorCategory::Unavailable, "the cpu backend stores float32 or float64, not " +
+        throw Error(ErrorCategory::Unavailable, "the cpu backend stores float32 or float64" +
+                                                    std::string(kHasFloat16 ? " or float16" : "") + ", not " +
                                                     std::string(to_string(options.precision)));
     }
   }

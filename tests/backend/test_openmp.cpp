@@ -1,8 +1,10 @@
 // What only the OpenMP backend has: a thread count and a choice of store instructions, neither of
-// which may change a result. The backend contract itself is tests/backend/conformance.cpp.
+// which may change a result, and float16 storage that rounds as the GPU's does. The backend
+// contract itself is tests/backend/conformance.cpp.
 #include <catch2/catch.hpp>
 
 #include "lblight/lattice/sun.h"
+#include "tests/backend/emulated_gpu.h"
 #include "tests/support/test_support.h"
 
 using namespace lblight;
@@ -38,5 +40,43 @@ TEST_CASE("Streaming and regular stores give identical results (uniform, empty a
       solver->read_totals(0, out.back().data());
     }
     CHECK(out[0] == out[1]);
+  }
+}
+
+TEST_CASE("float16 storage on the CPU rounds as the GPU's float16 mode does, and its error against float32 is bounded",
+          "[transport][float16]") {
+  const auto cpu = cpu_backend();
+  const auto gpu = make_emulated_gpu_backend();
+  if (!cpu->supports(Precision::Float16) || !gpu->supports(Precision::Float16)) {
+    WARN("SKIPPED: this compiler has no _Float16");
+    return;
+  }
+  // rows of 35 interior nodes (a converted chunk of 32 and a shifted tail) and of 18 (shorter than
+  // a chunk: node by node); leaves and wood mixed in rows
+  for (Dims d : {Dims{37, 21, 19}, Dims{20, 14, 15}}) {
+    const LatticeGeometry g = random_lattice(d, 0.9f, 0.2, 13);
+    const std::vector<ChannelMaterials> channels = {channel({0.05, 0.9, 0.6}, true, {0.3, 0.5, 0.0}, false)};
+    const std::vector<SystemSpec> batch = {system_for(0, base(6)), system_for(0, base(11))};
+    const auto run = [&](const Backend& b, Precision p) {
+      auto s = b.create(g, channels, {p, 2});
+      s->reset(batch);
+      s->step(150);
+      std::vector<Residual> r;
+      s->measure(r);
+      for (const Residual& x : r) CHECK(x.finite);
+      std::vector<std::vector<float>> t(batch.size(), std::vector<float>(d.count()));
+      for (std::size_t k = 0; k < batch.size(); ++k) s->read_totals(static_cast<int>(k), t[k].data());
+      return t;
+    };
+    const auto c16 = run(*cpu, Precision::Float16), c32 = run(*cpu, Precision::Float32);
+    const auto g16 = run(*gpu, Precision::Float16);
+    for (std::size_t k = 0; k < batch.size(); ++k) {
+      const double error = relative_gap(c16[k], c32[k]).l2, apart = relative_gap(c16[k], g16[k]).l2;
+      INFO(d.nx << "x" << d.ny << "x" << d.nz << " system " << k << ": float16 vs float32 " << error
+                << ", CPU vs GPU float16 " << apart);
+      CHECK(error > 1e-5);  // it really is stored in 16 bits
+      CHECK(error < 1e-2);
+      CHECK(apart < 0.1 * error);  // the same rounding: only the float32 arithmetic's order differs
+    }
   }
 }

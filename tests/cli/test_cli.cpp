@@ -227,14 +227,14 @@ TEST_CASE("Missing files and bad options are invalid input", "[cli]") {
   write_text(tmp / "tiny.json", kTinyScene);
   for (const char* args : {
            "bake tiny.json --iterations forever", "bake tiny.json --solutions 0,25",
-           "bake tiny.json --precision float16 --backend cpu", "validate tiny.json --tolerance 0",
+           "bake tiny.json --precision float8 --backend cpu", "validate tiny.json --tolerance 0",
            // NaN passes every range comparison: number options check finiteness themselves
            "bench --backend cpu --size 8 --bandwidth-mib nan",
            // an empty value (an unset shell variable) is an error, not the default
            "validate tiny.json --solutions ''", "bake tiny.json -o ''",
-           // a precision the backend cannot store is an error, not an empty table with exit 0
-           "bench --backend cpu --size 8 --precision float16",
-           "report tiny.json --backend cpu --runs plain:float16 -o rep"}) {
+           // a precision nobody stores is an error, not an empty table with exit 0
+           "bench --backend cpu --size 8 --precision float8",
+           "report tiny.json --backend cpu --runs plain:float8 -o rep"}) {
     INFO(args);
     CHECK(run_cli(args, tmp.path()).exit_code == 2);
   }
