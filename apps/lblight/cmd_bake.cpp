@@ -65,10 +65,10 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   if (args.solve.backend != "cpu" && args.solve.backend != "mpi")
     starting = std::async(std::launch::async, [&args] {
       const auto guard = hold_forks();  // the driver loads libraries: no .vdb probe forks meanwhile
-      return args.solve.make_backend();
+      return args.solve.make_backend("bake");
     });
   BakePlan plan = make_plan(scene, ov, args.solve.run_context());
-  auto backend = starting.valid() ? starting.get() : args.solve.make_backend();
+  auto backend = starting.valid() ? starting.get() : args.solve.make_backend("bake");
   if (!backend->supports(plan.precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
                       "; allowed: float32, float64 or float16 on cpu (float16 where the compiler has _Float16), float32 or float16 on cuda",

@@ -38,7 +38,7 @@ int run_report(const ReportArgs& args) {
   const Scene scene = load_scene(args.solve.scene);
   PlanOverrides ov = args.solve.overrides();
   ov.solutions.reset();  // the report chooses its own solutions (--solutions)
-  auto backend = args.solve.make_backend();
+  auto backend = args.solve.make_backend("report");
   auto reference = make_backend({"cpu", args.solve.threads, 0});
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-report")

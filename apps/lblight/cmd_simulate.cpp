@@ -89,7 +89,7 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
   std::unique_ptr<Backend> backend;
   SimulationOutput out;
   if (a.light) {
-    backend = a.solve.make_backend();
+    backend = a.solve.make_backend("simulate");
     if (!backend->supports(sequence.precision))
       throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(sequence.precision) +
                         "; allowed: " + supported_precisions(*backend),
@@ -97,7 +97,7 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
     spdlog::info("lighting every frame on {} ({})", backend->description(),
                  a.cold ? "each frame from zero" : "each frame from the previous one's light");
     out.lit = std::make_unique<BakeOutput>(sequence, target,
-                                           BakeRunInfo{global.command_line, backend->name(), backend->description(), {}},
+                                           BakeRunInfo{global.command_line, backend->name(), backend->description(), {}, {}},
                                            !backend->occupies_host_cores(), OutputKind::Simulation);
   } else {
     out.plain.emplace(target, OutputKind::Simulation);

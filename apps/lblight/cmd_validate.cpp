@@ -65,7 +65,7 @@ std::string savings_lines(const ModelPlan& mp) {
 int run_validate(const ValidateArgs& args) {
   const Scene scene = load_scene(args.solve.scene);
   const PlanOverrides ov = args.solve.overrides();
-  auto backend = args.solve.make_backend();
+  auto backend = args.solve.make_backend("bake");
   const BakePlan plan = make_plan(scene, ov, args.solve.run_context());
   const Precision precision = plan.precision;
   if (!backend->supports(precision))

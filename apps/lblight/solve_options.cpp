@@ -84,7 +84,12 @@ RunContext SolveOptions::run_context() const {
   return ctx;
 }
 
-std::unique_ptr<Backend> SolveOptions::make_backend() const {
+std::unique_ptr<Backend> SolveOptions::make_backend(const char* command) const {
+  // One lattice across ranks is what a bake needs; a report or a gas sequence on every rank would
+  // write the same output from each.
+  if (backend == "mpi" && std::string(command) != "bake")
+    throw_invalid(std::string("--backend mpi runs `lblight bake` across MPI ranks, not `lblight ") + command +
+                  "`; use --backend cpu or cuda (docs/scale-out.md)");
   BackendRequest req;
   req.name = backend;
   req.threads = usable_threads(threads);

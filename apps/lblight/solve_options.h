@@ -34,7 +34,8 @@ struct SolveOptions {
   std::vector<std::string> plan_arguments() const;
   // Cancelled by the CLI's signal handlers; host threads from --threads.
   RunContext run_context() const;
-  std::unique_ptr<Backend> make_backend() const;
+  // command: the subcommand asking ("bake", "report", ...): --backend mpi is for bake only.
+  std::unique_ptr<Backend> make_backend(const char* command) const;
 };
 
 }  // namespace lblight::cli

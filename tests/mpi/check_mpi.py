@@ -80,6 +80,10 @@ check(r.returncode != 0 and "each rank needs at least one" in r.stderr and not (
 r = run(lblight, "bake", "plant.json", "-o", "krylov", "--backend", "mpi", "--method", "bicgstab")
 check(r.returncode == 2 and "plain" in r.stderr and not (work / "krylov").exists(), "a Krylov method is refused")
 
+r = run(lblight, "report", "plant.json", "-o", "rep", "--backend", "mpi", "--solutions", "6")
+check(r.returncode == 2 and "lblight bake" in r.stderr and not (work / "rep").exists(),
+      "report refuses --backend mpi (each rank would write it), naming bake")
+
 if failures:
     print(f"{len(failures)} check(s) failed")
     sys.exit(1)
