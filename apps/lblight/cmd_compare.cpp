@@ -207,7 +207,8 @@ int compare_exact(const CompareArgs& a) {
                     ga.frame.index_to_world == gb.frame.index_to_world;
         for (std::size_t c = 0; same && c < ga.values.size(); ++c)
           same = ga.values[c].size() == gb.values[c].size() &&
-                 std::memcmp(ga.values[c].data(), gb.values[c].data(), ga.values[c].size() * sizeof(float)) == 0;
+                 (ga.values[c].empty() ||  // memcmp takes no null pointer, even for 0 bytes
+                  std::memcmp(ga.values[c].data(), gb.values[c].data(), ga.values[c].size() * sizeof(float)) == 0);
         if (!same) differ(name + " grid " + grid + ": values or lattice box");
       }
     }
