@@ -169,13 +169,14 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
  public:
   CpuLatticeSolver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity,
-                   int threads, StoreMode stores, bool flush_denormals)
+                   int threads, const SolverOptions& options)
       : d_(g.dims),
         n_(g.dims.count()),
         capacity_(capacity),
         threads_(threads),
-        stores_(stores),
-        flush_denormals_(flush_denormals) {
+        stores_(options.stores),
+        flush_denormals_(options.flush_denormals),
+        time_block_option_(options.time_block) {
     check_geometry(g, "cpu");
     density_ = g.density;
     material_ = g.material;
@@ -201,6 +202,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   int capacity() const override { return capacity_; }
+  int steps_per_pass() const override { return time_block_; }
 
   void reset(const std::vector<SystemSpec>& batch) override {
     if (static_cast<int>(batch.size()) > capacity_) throw std::logic_error("batch larger than solver capacity");
@@ -225,19 +227,29 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     now_ = 0;
     cur_ = 0;
     const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Store);
-    stream_ = kCanStream &&
-              (stores_ == StoreMode::Streaming ||
-               (stores_ == StoreMode::Auto && state_bytes > 2.0 * static_cast<double>(host_last_level_cache_bytes())));
+    const double cache = static_cast<double>(host_last_level_cache_bytes());
+    stream_ = kCanStream && (stores_ == StoreMode::Streaming || (stores_ == StoreMode::Auto && state_bytes > 2.0 * cache));
+    time_block_ = time_block_option_ > 0 ? time_block_option_ : auto_time_block(state_bytes / std::max(active_, 1), cache);
   }
 
   void step(int steps) override {
-    for (int t = 0; t < steps; ++t) {
+    int done = 0;
+    if (now_ == 0 && steps > 0) {
       // g(0) = C f(0) = 0 on the interior, which is what both levels already hold: the first
       // step only advances the clock.
-      if (now_ > 0)
-        for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)]);
-      if (now_ > 0) cur_ = 1 - cur_;
-      ++now_;
+      now_ = 1;
+      done = 1;
+    }
+    while (done < steps) {
+      const int depth = std::min(time_block_, steps - done);
+      for (int s = 0; s < active_; ++s) {
+        Slot& slot = slots_[static_cast<std::size_t>(s)];
+        if (depth == 1) step_system(slot);
+        else wavefront(slot, depth);
+      }
+      if (depth % 2 == 1) cur_ = 1 - cur_;
+      now_ += depth;
+      done += depth;
     }
   }
 
@@ -446,22 +458,58 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   double vector_dot(int x, int y) override {
-    const Store* px = vec(x);
-    const Store* py = vec(y);
-    const std::size_t n = kQ * stride_;
-    constexpr std::size_t kBlock = 1 << 14;  // fixed blocks, added in order: thread-count independent
-    const std::size_t blocks = (n + kBlock - 1) / kBlock;
-    std::vector<double> partial(blocks, 0.0);
-#pragma omp parallel for schedule(static) num_threads(threads_)
-    for (std::size_t b = 0; b < blocks; ++b) {
-      double sum = 0;
-      const std::size_t end = std::min(n, (b + 1) * kBlock);
-      for (std::size_t i = b * kBlock; i < end; ++i) sum += static_cast<double>(px[i]) * static_cast<double>(py[i]);
-      partial[b] = sum;
+    double xy = 0, unused = 0;
+    dots(vec(x), vec(y), nullptr, nullptr, xy, unused);
+    return xy;
+  }
+
+  void vector_dots(int x, int y, int u, int w, double& xy, double& uw) override {
+    dots(vec(x), vec(y), vec(u), vec(w), xy, uw);
+  }
+
+  // The sweep, then each row's y = x - A x while the row is still in the cache.
+  void vector_apply_minus(int x, int y) override {
+    const Slot& slot = slots_.front();
+    const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
+    const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+    const Store* __restrict src = vec(x);
+    Store* __restrict dst = vec(y);
+    const int nx = d_.nx;
+#pragma omp parallel num_threads(threads_)
+    {
+      const ScopedFlushDenormals ftz(flush_denormals_);
+#pragma omp for collapse(2) schedule(dynamic, 8)
+      for (int z = 1; z < d_.nz - 1; ++z)
+        for (int yy = 1; yy < d_.ny - 1; ++yy) {
+          sweep_row<false>(src, dst, ops, absorb_bits, yy, z);
+          const long long row = state_index(0, yy, z);
+          for (int m = 0; m < kQ; ++m) {
+            const Store* __restrict in = src + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
+            Store* __restrict out = dst + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
+#pragma omp simd
+            for (int i = 1; i < nx - 1; ++i)
+              out[i] = static_cast<Store>(static_cast<Real>(in[i]) - static_cast<Real>(out[i]));
+          }
+        }
     }
-    double total = 0;
-    for (double p : partial) total += p;
-    return total;
+  }
+
+  void vector_combine(double a, int x, double b, int y, double c, int z) override {
+    const Store* __restrict px = vec(x);
+    const Store* __restrict py = vec(y);
+    Store* __restrict pz = vec(z);
+    const Real ra = static_cast<Real>(a), rb = static_cast<Real>(b), rc = static_cast<Real>(c);
+    const std::size_t n = kQ * stride_;
+    if (c == 0.0) {  // z is not read: one vector less to load
+#pragma omp parallel for simd schedule(static) num_threads(threads_)
+      for (std::size_t i = 0; i < n; ++i)
+        pz[i] = static_cast<Store>(ra * static_cast<Real>(px[i]) + rb * static_cast<Real>(py[i]));
+    } else {
+#pragma omp parallel for simd schedule(static) num_threads(threads_)
+      for (std::size_t i = 0; i < n; ++i)
+        pz[i] = static_cast<Store>(ra * static_cast<Real>(px[i]) + rb * static_cast<Real>(py[i]) +
+                                   rc * static_cast<Real>(pz[i]));
+    }
   }
 
  private:
@@ -498,6 +546,34 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       for (int y = 1; y < d_.ny - 1; ++y)
         for (int x = 1; x < d_.nx - 1; ++x)
           visit(k++, static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z)));
+    }
+  }
+
+  // x.y and (where u is given) u.w in one pass: fixed blocks added in order, so the sums do not
+  // depend on the thread count.
+  void dots(const Store* px, const Store* py, const Store* pu, const Store* pw, double& xy, double& uw) const {
+    const std::size_t n = kQ * stride_;
+    constexpr std::size_t kBlock = 1 << 14;
+    const std::size_t blocks = (n + kBlock - 1) / kBlock;
+    std::vector<double> partial(2 * blocks, 0.0);
+#pragma omp parallel for schedule(static) num_threads(threads_)
+    for (std::size_t b = 0; b < blocks; ++b) {
+      double s1 = 0, s2 = 0;
+      const std::size_t end = std::min(n, (b + 1) * kBlock);
+      if (pu)
+        for (std::size_t i = b * kBlock; i < end; ++i) {
+          s1 += static_cast<double>(px[i]) * static_cast<double>(py[i]);
+          s2 += static_cast<double>(pu[i]) * static_cast<double>(pw[i]);
+        }
+      else
+        for (std::size_t i = b * kBlock; i < end; ++i) s1 += static_cast<double>(px[i]) * static_cast<double>(py[i]);
+      partial[2 * b] = s1;
+      partial[2 * b + 1] = s2;
+    }
+    xy = uw = 0;
+    for (std::size_t b = 0; b < blocks; ++b) {
+      xy += partial[2 * b];
+      uw += partial[2 * b + 1];
     }
   }
 
@@ -583,25 +659,79 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   template <bool kStream>
   void sweep(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
              unsigned absorb_bits, int z_lo, int z_hi) const {
-    const int rows_y = d_.ny - 2;
 #pragma omp parallel num_threads(threads_)
     {
       const ScopedFlushDenormals ftz(flush_denormals_);
 #pragma omp for collapse(2) schedule(dynamic, 8)
       for (int z = z_lo; z <= z_hi; ++z)
-        for (int y = 1; y < d_.ny - 1; ++y) {
-          const std::size_t r = static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1);
-          const unsigned mask = row_mask_[r];
-          if ((mask & (mask - 1)) == 0) {
-            const int k = __builtin_ctz(mask);
-            const Real keep = f0_keep<Real>(absorb_bits, static_cast<unsigned>(k));
-            if (row_empty_[r]) stream_row<kStream>(src, dst, y, z, keep);
-            else uniform_row<kStream>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
-          } else {
-            mixed_row<kStream>(src, dst, y, z, ops, absorb_bits);
-          }
-        }
+        for (int y = 1; y < d_.ny - 1; ++y) sweep_row<kStream>(src, dst, ops, absorb_bits, y, z);
       if (kStream) stream_fence();  // make this thread's streaming stores visible before the barrier
+    }
+  }
+
+  // The automatic wavefront depth: 1 while one system's two levels fit in half the cache (its
+  // steps are served from the cache already); else the deepest of 2..8 whose live layers
+  // (2 depth + 2 layers of both levels) take at most half the cache, measured in
+  // docs/performance.md.
+  int auto_time_block(double system_bytes, double cache) const {
+    if (cache <= 0 || system_bytes <= 0.5 * cache) return 1;
+    const double layer = 2.0 * kQ * static_cast<double>(plane_) * sizeof(Store);
+    int depth = 1;
+    for (int k = 2; k <= 8; ++k)
+      if ((2.0 * k + 2.0) * layer <= 0.5 * cache) depth = k;
+    return depth;
+  }
+
+  // `depth` steps of one system in one pass over the lattice (temporal blocking, docs/performance.md):
+  // a wavefront moves along z, and at position p step t (0-based) updates layer p - 2t, from
+  // level (cur + t) mod 2 into the other. Each step's layer lags its predecessor's by two, so
+  // everything it reads (layers z-1..z+1 of step t-1's output) is finished and not yet
+  // overwritten (step t+1 writes into the same level two layers behind), and the `depth` layers
+  // of one position touch disjoint data: they run in parallel, one barrier per position. Only
+  // the layers of about 2 depth + 2 positions of both levels are live, so for a lattice far
+  // larger than the cache each value crosses the memory bus once per block instead of once per
+  // step. Every node sees the same arithmetic on the same inputs as step by step: the results
+  // are the same bits. The last step streams its stores past the cache (when stream_ says so):
+  // its layer is not read again in this pass.
+  void wavefront(const Slot& slot, int depth) {
+    const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
+    const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+    const Store* level[2] = {slot.buffer(cur_), slot.buffer(1 - cur_)};
+    const int z_last = d_.nz - 2, rows_y = d_.ny - 2;
+    const bool stream_last = stream_;
+#pragma omp parallel num_threads(threads_)
+    {
+      const ScopedFlushDenormals ftz(flush_denormals_);
+      for (int p = 1; p <= z_last + 2 * (depth - 1); ++p) {
+        // the steps whose layer p - 2t lies in 1..z_last
+        const int t_lo = std::max(0, (p - z_last + 1) / 2), t_hi = std::min(depth - 1, (p - 1) / 2);
+        const int items = (t_hi - t_lo + 1) * rows_y;
+#pragma omp for schedule(dynamic, 4)
+        for (int item = 0; item < items; ++item) {
+          const int t = t_lo + item / rows_y, y = 1 + item % rows_y, z = p - 2 * t;
+          const Store* src = level[t % 2];
+          Store* dst = const_cast<Store*>(level[1 - t % 2]);
+          if (stream_last && t == depth - 1) sweep_row<true>(src, dst, ops, absorb_bits, y, z);
+          else sweep_row<false>(src, dst, ops, absorb_bits, y, z);
+        }
+        if (stream_last) stream_fence();
+      }
+    }
+  }
+
+  // One row's pull update: the row's materials pick the kernel (classify_rows).
+  template <bool kStream>
+  LBL_FORCEINLINE void sweep_row(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
+                                 unsigned absorb_bits, int y, int z) const {
+    const std::size_t r = static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1);
+    const unsigned mask = row_mask_[r];
+    if ((mask & (mask - 1)) == 0) {
+      const int k = __builtin_ctz(mask);
+      const Real keep = f0_keep<Real>(absorb_bits, static_cast<unsigned>(k));
+      if (row_empty_[r]) stream_row<kStream>(src, dst, y, z, keep);
+      else uniform_row<kStream>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
+    } else {
+      mixed_row<kStream>(src, dst, y, z, ops, absorb_bits);
     }
   }
 
@@ -758,6 +888,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   long long now_ = 0;  // steps since reset
   int cur_ = 0;        // level holding g(now - 1): f(now) = gather from it
   bool stream_ = false;
+  int time_block_option_ = 0;
+  int time_block_ = 1;  // steps per pass over the lattice (wavefront); from the option at reset
 };
 
 class OpenMpBackend final : public Backend {
@@ -785,15 +917,12 @@ class OpenMpBackend final : public Backend {
     const int capacity = options.max_systems > 0 ? options.max_systems : 3;
     switch (options.precision) {
       case Precision::Float32:
-        return std::make_unique<CpuLatticeSolver<float>>(g, channels, capacity, threads_, options.stores,
-                                                          options.flush_denormals);
+        return std::make_unique<CpuLatticeSolver<float>>(g, channels, capacity, threads_, options);
       case Precision::Float64:
-        return std::make_unique<CpuLatticeSolver<double>>(g, channels, capacity, threads_, options.stores,
-                                                           options.flush_denormals);
+        return std::make_unique<CpuLatticeSolver<double>>(g, channels, capacity, threads_, options);
 #if LBLIGHT_CPU_FLOAT16
       case Precision::Float16:
-        return std::make_unique<CpuLatticeSolver<float, _Float16>>(g, channels, capacity, threads_, options.stores,
-                                                                   options.flush_denormals);
+        return std::make_unique<CpuLatticeSolver<float, _Float16>>(g, channels, capacity, threads_, options);
 #endif
       default:
         throw Error(ErrorCategory::Unavailable, "the cpu backend stores float32 or float64" +

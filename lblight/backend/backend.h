@@ -85,6 +85,11 @@ struct SolverOptions {
   // float32) are then 0 instead of costing a microcode assist per operation (docs/stability.md).
   // false keeps the caller's mode, for measurements. GPU backends ignore it.
   bool flush_denormals = true;
+  // CPU: steps per pass over the lattice (temporal blocking, docs/performance.md): 1 steps one
+  // at a time; k > 1 runs up to k steps in one wavefront pass; 0 lets the backend choose from its
+  // cache size (1 where the state fits in the cache anyway). Results are the same bits for any
+  // value. GPU backends ignore it.
+  int time_block = 0;
 };
 
 // A solver has up to three parts, one per client (docs/architecture.md, "The backend seam"):
@@ -109,6 +114,10 @@ class LatticeSolver {
   // Totals (dims.count() values) as of the last measure().
   virtual void read_totals(int system, float* out) const = 0;
   virtual std::size_t bytes_in_use() const = 0;  // memory held on the backend's device
+  // Steps run per pass over the state when step() is given that many (temporal blocking,
+  // SolverOptions::time_block), as chosen at the last reset: what `bench` divides the memory
+  // traffic per update by.
+  virtual int steps_per_pass() const { return 1; }
 
   // The other parts, or nullptr where this solver does not offer them.
   virtual KrylovVectors* krylov_vectors() { return nullptr; }
@@ -129,6 +138,21 @@ class KrylovVectors {
   virtual void vector_apply(int x, int y) = 0;     // y = A x
   virtual void vector_axpby(double a, int x, double b, int y) = 0;  // y = a x + b y
   virtual double vector_dot(int x, int y) = 0;     // summed in a fixed order (deterministic)
+
+  // Fused forms BiCGStab runs (one pass over memory each where a backend fuses them; composed of
+  // the operations above by default). Vectors named in one call are distinct.
+  virtual void vector_apply_minus(int x, int y) {  // y = x - A x
+    vector_apply(x, y);
+    vector_axpby(1.0, x, -1.0, y);
+  }
+  virtual void vector_combine(double a, int x, double b, int y, double c, int z) {  // z = a x + b y + c z
+    vector_axpby(b, y, c, z);
+    vector_axpby(a, x, 1.0, z);
+  }
+  virtual void vector_dots(int x, int y, int u, int w, double& xy, double& uw) {  // x.y and u.w
+    xy = vector_dot(x, y);
+    uw = vector_dot(u, w);
+  }
 };
 
 // Raw state access for tests, diagnostics and the accelerated solver (solve/dsa.h): 19 * count
