@@ -257,46 +257,37 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // result does not depend on the thread count.
   void measure(std::vector<Residual>& out) override {
     out.assign(static_cast<std::size_t>(active_), Residual{});
-    const int rows_y = d_.ny - 2, rows_z = d_.nz - 2;
-    struct RowSums {
-      double v[kReduceSlots];
-    };
-    std::vector<RowSums> rows(static_cast<std::size_t>(rows_y) * rows_z);
-    layer_sums_.assign(static_cast<std::size_t>(active_) * rows_z * kReduceSlots, 0.0);
+    rows_.resize(static_cast<std::size_t>(d_.ny - 2) * (d_.nz - 2));
+    layer_sums_.assign(static_cast<std::size_t>(active_) * (d_.nz - 2) * kReduceSlots, 0.0);
     for (int s = 0; s < active_; ++s) {
-      Slot& slot = slots_[static_cast<std::size_t>(s)];
-      const Store* g = slot.buffer(cur_);
-      const Real* prev = slot.totals.data();
-      Real* next = slot.scratch.data();
-      const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
-      const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+      const Slot& slot = slots_[static_cast<std::size_t>(s)];
 #pragma omp parallel for collapse(2) schedule(dynamic, 8) num_threads(threads_)
       for (int z = 1; z < d_.nz - 1; ++z)
-        for (int y = 1; y < d_.ny - 1; ++y) {
-          const std::size_t base = d_.index(0, y, z);
-          RowSums r{};
-          for (int x = 1; x < d_.nx - 1; ++x) {
-            const std::size_t i = base + static_cast<std::size_t>(x);
-            Real f[kQ];
-            gather(g, state_index(x, y, z), f);
-            const unsigned k = material_[i];
-            accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i],
-                                          next[i]));
-          }
-          rows[static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1)] = r;
-        }
-      // rows into layers, layers in z order: the order a slab decomposition can repeat exactly
-      double* layers = layer_sums_.data() + static_cast<std::size_t>(s) * rows_z * kReduceSlots;
-      double sums[kReduceSlots] = {};
-      for (int z = 0; z < rows_z; ++z) {
-        double l[kReduceSlots] = {};
-        for (int y = 0; y < rows_y; ++y) combine(l, rows[static_cast<std::size_t>(z) * rows_y + static_cast<std::size_t>(y)].v);
-        combine(sums, l);
-        std::copy_n(l, kReduceSlots, layers + static_cast<std::size_t>(z) * kReduceSlots);
-      }
-      std::swap(slot.totals, slot.scratch);
-      out[static_cast<std::size_t>(s)] = to_residual(sums);
+        for (int y = 1; y < d_.ny - 1; ++y) measure_row(slot, slot.buffer(cur_), y, z);
+      out[static_cast<std::size_t>(s)] = finish_measure(s);
     }
+  }
+
+  // step(steps) then measure(out), the measurement riding along the last pass over the lattice
+  // as one more wavefront stage (two layers behind the last step): the same sums in the same
+  // order, without a pass of its own.
+  void step_and_measure(int steps, std::vector<Residual>& out) override {
+    if (time_block_ < 2 || steps < 2 || now_ == 0) {
+      step(steps);
+      measure(out);
+      return;
+    }
+    const int last = std::min(time_block_, steps);
+    step(steps - last);
+    out.assign(static_cast<std::size_t>(active_), Residual{});
+    rows_.resize(static_cast<std::size_t>(d_.ny - 2) * (d_.nz - 2));
+    layer_sums_.assign(static_cast<std::size_t>(active_) * (d_.nz - 2) * kReduceSlots, 0.0);
+    for (int s = 0; s < active_; ++s) {
+      wavefront(slots_[static_cast<std::size_t>(s)], last, true);
+      out[static_cast<std::size_t>(s)] = finish_measure(s);
+    }
+    if (last % 2 == 1) cur_ = 1 - cur_;
+    now_ += last;
   }
 
   void read_totals(int system, float* out) const override {
@@ -514,6 +505,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
  private:
   std::vector<double> layer_sums_;  // the last measure(): per system and interior layer, kReduceSlots sums
+  struct RowSums {
+    double v[kReduceSlots];
+  };
+  std::vector<RowSums> rows_;  // measure(): per interior row
 
   struct Slot {
     SystemSpec spec;
@@ -673,7 +668,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // steps are served from the cache already); else the deepest of 2..8 whose live layers
   // (2 depth + 2 layers of both levels) take at most half the cache, measured in
   // docs/performance.md.
+  // 16-bit storage: 1, as its conversions, not the memory, bound it (blocked was 0.8-0.95x of
+  // step by step at 128^3 on the development machine).
   int auto_time_block(double system_bytes, double cache) const {
+    if (!std::is_same_v<Real, Store>) return 1;
     if (cache <= 0 || system_bytes <= 0.5 * cache) return 1;
     const double layer = 2.0 * kQ * static_cast<double>(plane_) * sizeof(Store);
     int depth = 1;
@@ -693,23 +691,30 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // step. Every node sees the same arithmetic on the same inputs as step by step: the results
   // are the same bits. The last step streams its stores past the cache (when stream_ says so):
   // its layer is not read again in this pass.
-  void wavefront(const Slot& slot, int depth) {
+  // With measure, stage t = depth is measure()'s row work on the final level (rows_).
+  void wavefront(const Slot& slot, int depth, bool measure = false) {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     const Store* level[2] = {slot.buffer(cur_), slot.buffer(1 - cur_)};
     const int z_last = d_.nz - 2, rows_y = d_.ny - 2;
-    const bool stream_last = stream_;
+    const int stages = depth + (measure ? 1 : 0);
+    // the last step's layer is read again by the measure stage: keep it in the cache then
+    const bool stream_last = stream_ && !measure;
 #pragma omp parallel num_threads(threads_)
     {
       const ScopedFlushDenormals ftz(flush_denormals_);
-      for (int p = 1; p <= z_last + 2 * (depth - 1); ++p) {
-        // the steps whose layer p - 2t lies in 1..z_last
-        const int t_lo = std::max(0, (p - z_last + 1) / 2), t_hi = std::min(depth - 1, (p - 1) / 2);
+      for (int p = 1; p <= z_last + 2 * (stages - 1); ++p) {
+        // the stages whose layer p - 2t lies in 1..z_last
+        const int t_lo = std::max(0, (p - z_last + 1) / 2), t_hi = std::min(stages - 1, (p - 1) / 2);
         const int items = (t_hi - t_lo + 1) * rows_y;
 #pragma omp for schedule(dynamic, 4)
         for (int item = 0; item < items; ++item) {
           const int t = t_lo + item / rows_y, y = 1 + item % rows_y, z = p - 2 * t;
           const Store* src = level[t % 2];
+          if (t == depth) {
+            measure_row(slot, src, y, z);
+            continue;
+          }
           Store* dst = const_cast<Store*>(level[1 - t % 2]);
           if (stream_last && t == depth - 1) sweep_row<true>(src, dst, ops, absorb_bits, y, z);
           else sweep_row<false>(src, dst, ops, absorb_bits, y, z);
@@ -717,6 +722,42 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         if (stream_last) stream_fence();
       }
     }
+  }
+
+  // measure()'s work on row (y, z) of system slot, whose current level is g: the node rules'
+  // sums (backend/node_rules.h) into rows_, the new totals into the scratch array.
+  void measure_row(const Slot& slot, const Store* g, int y, int z) {
+    const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
+    const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+    const Real* prev = slot.totals.data();
+    Real* next = const_cast<Real*>(slot.scratch.data());
+    const std::size_t base = d_.index(0, y, z);
+    RowSums r{};
+    for (int x = 1; x < d_.nx - 1; ++x) {
+      const std::size_t i = base + static_cast<std::size_t>(x);
+      Real f[kQ];
+      gather(g, state_index(x, y, z), f);
+      const unsigned k = material_[i];
+      accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i], next[i]));
+    }
+    rows_[static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1)] = r;
+  }
+
+  // Rows into layers, layers in z order (the order a slab decomposition can repeat exactly);
+  // the new totals become the current ones.
+  Residual finish_measure(int s) {
+    const int rows_y = d_.ny - 2, rows_z = d_.nz - 2;
+    double* layers = layer_sums_.data() + static_cast<std::size_t>(s) * rows_z * kReduceSlots;
+    double sums[kReduceSlots] = {};
+    for (int z = 0; z < rows_z; ++z) {
+      double l[kReduceSlots] = {};
+      for (int y = 0; y < rows_y; ++y) combine(l, rows_[static_cast<std::size_t>(z) * rows_y + static_cast<std::size_t>(y)].v);
+      combine(sums, l);
+      std::copy_n(l, kReduceSlots, layers + static_cast<std::size_t>(z) * kReduceSlots);
+    }
+    Slot& slot = slots_[static_cast<std::size_t>(s)];
+    std::swap(slot.totals, slot.scratch);
+    return to_residual(sums);
   }
 
   // One row's pull update: the row's materials pick the kernel (classify_rows).

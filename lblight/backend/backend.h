@@ -111,6 +111,11 @@ class LatticeSolver {
   // Recomputes the totals of every system in the batch and how much they changed since the
   // last measure (or since reset). out has one entry per system.
   virtual void measure(std::vector<Residual>& out) = 0;
+  // step(steps) then measure(out); a backend may fuse the two (the CPU's temporal blocking).
+  virtual void step_and_measure(int steps, std::vector<Residual>& out) {
+    step(steps);
+    measure(out);
+  }
   // Totals (dims.count() values) as of the last measure().
   virtual void read_totals(int system, float* out) const = 0;
   virtual std::size_t bytes_in_use() const = 0;  // memory held on the backend's device

@@ -116,14 +116,12 @@ class BatchRunner {
     std::vector<Residual> cycle(systems);
     while (out_.steps + m <= pol.max_steps) {
       const auto cycle_start = Clock::now();
-      solver_.step(m - span);
+      solver_.step_and_measure(m - span, residuals_);
       double step_seconds = seconds_since(cycle_start);
-      solver_.measure(residuals_);
       for (std::size_t s = 0; s < systems; ++s) solver_.read_totals(static_cast<int>(s), before[s].data());
       const auto last_steps = Clock::now();
-      solver_.step(span);
+      solver_.step_and_measure(span, residuals_);
       step_seconds += seconds_since(last_steps);
-      solver_.measure(residuals_);
       out_.steps += m;
       for (std::size_t s = 0; s < systems; ++s) {
         solver_.read_totals(static_cast<int>(s), after[s].data());
@@ -204,9 +202,8 @@ class BatchRunner {
 
   // Runs `chunk` steps and a measure; true when every system's estimate has been below tolerance.
   bool check(int chunk, int planned) {
-    solver_.step(chunk);
+    solver_.step_and_measure(chunk, residuals_);
     out_.steps += chunk;
-    solver_.measure(residuals_);
     return record_checks(chunk, planned, residuals_, false);
   }
 

@@ -44,8 +44,8 @@ KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const R
   double rho_next = 0;     // rhat . r, computed with |r| at the end of an iteration
   bool have_rho = false;
   bool restart = true;
-  // Each iteration: two steps (apply_m) and five fused vector passes (docs/model.md sec. 6):
-  // about 24 vector reads and writes against 42 composed of single operations.
+  // Each iteration: two fused sweeps (apply_m) and seven vector passes (docs/model.md sec. 3.1):
+  // about 24 vector reads and writes against 41 composed of single operations.
   while (rnorm / bnorm > tolerance && out.steps + 2 <= max_steps) {
     ctx.check_cancelled();
     if (restart) {  // (re)start with the shadow residual equal to the residual

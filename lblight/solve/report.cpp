@@ -50,9 +50,8 @@ std::vector<double> reference_totals(const ModelPlan& sub, const Backend& cpu, d
     monitor = ConvergenceMonitor(Precision::Float64);
     solver->measure(r);
     for (int c = 0; c < 6; ++c) {
-      solver->step(k);
+      solver->step_and_measure(k, r);
       info.steps += k;
-      solver->measure(r);
       monitor.record(info.steps, k, 0, r[0]);
     }
     if (monitor.error_estimate() < tolerance) break;
