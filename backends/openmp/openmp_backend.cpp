@@ -116,7 +116,7 @@ inline void stream_fence() {
 #endif
 }
 
-// N 16-bit floats (any alignment) to Real and back (to 32-byte aligned memory), rounding to
+// N 16-bit floats (any alignment) to Real and back (any alignment: a row's shifted last chunk), rounding to
 // nearest even as the GPU's __float2half_rn does. With AVX-512 or F16C one instruction converts
 // 16 or 8 values; GCC 12 does not vectorise _Float16 conversions itself. Real = Store needs none.
 template <int N, typename Real, typename Half>
@@ -142,16 +142,16 @@ inline void reals_to_halves(const Real* in, Half* out) {
 #if LBL_X86 && defined(__AVX512F__)
   if constexpr (std::is_same_v<Real, float> && N % 16 == 0 && sizeof(Half) == 2) {
     for (int i = 0; i < N; i += 16)
-      _mm256_store_si256(reinterpret_cast<__m256i*>(out + i),
-                         _mm512_mask_cvtps_ph(_mm256_setzero_si256(), 0xFFFF, _mm512_load_ps(in + i),
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + i),
+                          _mm512_mask_cvtps_ph(_mm256_setzero_si256(), 0xFFFF, _mm512_load_ps(in + i),
                                               _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
     return;
   }
 #elif LBL_X86 && defined(__F16C__)
   if constexpr (std::is_same_v<Real, float> && N % 8 == 0 && sizeof(Half) == 2) {
     for (int i = 0; i < N; i += 8)
-      _mm_store_si128(reinterpret_cast<__m128i*>(out + i),
-                      _mm256_cvtps_ph(_mm256_load_ps(in + i), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i),
+                       _mm256_cvtps_ph(_mm256_load_ps(in + i), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
     return;
   }
 #endif
