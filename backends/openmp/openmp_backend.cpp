@@ -256,9 +256,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // Per row, the node rules' sums (backend/node_rules.h), then the rows added in row order: the
   // result does not depend on the thread count.
   void measure(std::vector<Residual>& out) override {
-    out.assign(static_cast<std::size_t>(active_), Residual{});
-    rows_.resize(static_cast<std::size_t>(d_.ny - 2) * (d_.nz - 2));
-    layer_sums_.assign(static_cast<std::size_t>(active_) * (d_.nz - 2) * kReduceSlots, 0.0);
+    begin_measure(out);
     for (int s = 0; s < active_; ++s) {
       const Slot& slot = slots_[static_cast<std::size_t>(s)];
 #pragma omp parallel for collapse(2) schedule(dynamic, 8) num_threads(threads_)
@@ -279,9 +277,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
     const int last = std::min(time_block_, steps);
     step(steps - last);
-    out.assign(static_cast<std::size_t>(active_), Residual{});
-    rows_.resize(static_cast<std::size_t>(d_.ny - 2) * (d_.nz - 2));
-    layer_sums_.assign(static_cast<std::size_t>(active_) * (d_.nz - 2) * kReduceSlots, 0.0);
+    begin_measure(out);
     for (int s = 0; s < active_; ++s) {
       wavefront(slots_[static_cast<std::size_t>(s)], last, true);
       out[static_cast<std::size_t>(s)] = finish_measure(s);
@@ -461,28 +457,20 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // The sweep, then each row's y = x - A x while the row is still in the cache.
   void vector_apply_minus(int x, int y) override {
     const Slot& slot = slots_.front();
-    const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
-    const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     const Store* __restrict src = vec(x);
     Store* __restrict dst = vec(y);
     const int nx = d_.nx;
-#pragma omp parallel num_threads(threads_)
-    {
-      const ScopedFlushDenormals ftz(flush_denormals_);
-#pragma omp for collapse(2) schedule(dynamic, 8)
-      for (int z = 1; z < d_.nz - 1; ++z)
-        for (int yy = 1; yy < d_.ny - 1; ++yy) {
-          sweep_row<false>(src, dst, ops, absorb_bits, yy, z);
-          const long long row = state_index(0, yy, z);
-          for (int m = 0; m < kQ; ++m) {
-            const Store* __restrict in = src + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
-            Store* __restrict out = dst + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
+    sweep<false>(src, dst, ops_[static_cast<std::size_t>(slot.spec.channel)],
+                 absorb_bits_[static_cast<std::size_t>(slot.spec.channel)], 1, d_.nz - 2, [&](int yy, int z) {
+                   const long long row = state_index(0, yy, z);
+                   for (int m = 0; m < kQ; ++m) {
+                     const Store* __restrict in = src + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
+                     Store* __restrict out = dst + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
 #pragma omp simd
-            for (int i = 1; i < nx - 1; ++i)
-              out[i] = static_cast<Store>(static_cast<Real>(in[i]) - static_cast<Real>(out[i]));
-          }
-        }
-    }
+                     for (int i = 1; i < nx - 1; ++i)
+                       out[i] = static_cast<Store>(static_cast<Real>(in[i]) - static_cast<Real>(out[i]));
+                   }
+                 });
   }
 
   void vector_combine(double a, int x, double b, int y, double c, int z) override {
@@ -651,15 +639,19 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
               g[static_cast<std::size_t>(m) * stride_ + static_cast<std::size_t>(state_index(x, y, z))] = Store(0);
   }
 
-  template <bool kStream>
+  // after_row(y, z) runs on the sweeping thread right after row (y, z) is written.
+  template <bool kStream, typename AfterRow = void (*)(int, int)>
   void sweep(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
-             unsigned absorb_bits, int z_lo, int z_hi) const {
+             unsigned absorb_bits, int z_lo, int z_hi, AfterRow&& after_row = [](int, int) {}) const {
 #pragma omp parallel num_threads(threads_)
     {
       const ScopedFlushDenormals ftz(flush_denormals_);
 #pragma omp for collapse(2) schedule(dynamic, 8)
       for (int z = z_lo; z <= z_hi; ++z)
-        for (int y = 1; y < d_.ny - 1; ++y) sweep_row<kStream>(src, dst, ops, absorb_bits, y, z);
+        for (int y = 1; y < d_.ny - 1; ++y) {
+          sweep_row<kStream>(src, dst, ops, absorb_bits, y, z);
+          after_row(y, z);
+        }
       if (kStream) stream_fence();  // make this thread's streaming stores visible before the barrier
     }
   }
@@ -741,6 +733,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i], next[i]));
     }
     rows_[static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1)] = r;
+  }
+
+  // Sizes what measure_row and finish_measure fill.
+  void begin_measure(std::vector<Residual>& out) {
+    out.assign(static_cast<std::size_t>(active_), Residual{});
+    rows_.resize(static_cast<std::size_t>(d_.ny - 2) * (d_.nz - 2));
+    layer_sums_.assign(static_cast<std::size_t>(active_) * (d_.nz - 2) * kReduceSlots, 0.0);
   }
 
   // Rows into layers, layers in z order (the order a slab decomposition can repeat exactly);
