@@ -9,6 +9,14 @@
 // non-temporal stores, which skip the read-for-ownership a push scheme pays on every store
 // (a third of its memory traffic). Boundary nodes (density 0, margin >= 1) hold their fixed
 // values permanently, so there is no inflow bookkeeping and no branch in the inner loop.
+//
+// With StateLayout::InPlace one copy of the state is updated in place by the AA pattern
+// (docs/performance.md, "In-place streaming"): steps alternate between a "swap-out" step (node q
+// gathers as above, then stores g_m(q) into slot opposite(m) of q + c_m: exactly the entries it
+// read) and a "swap-in" step (node q reads f_m(q) from its own slot opposite(m) and stores g_m(q)
+// into its own slot m: the natural layout again). Each entry has one reader and writer per step,
+// so rows still run in parallel, and every node sees the same arithmetic on the same inputs: the
+// same bits as two levels. Two surface passes keep the fixed boundary exact (edges_in_, edges_out_).
 #include "backends/openmp/openmp_backend.h"
 
 #include <omp.h>
@@ -160,6 +168,13 @@ inline void reals_to_halves(const Real* in, Half* out) {
 
 // Real: the arithmetic; Store: the state's storage (Real, or _Float16 rounded to nearest even as
 // the GPU's float16 mode stores, arithmetic still in float).
+// How a sweep addresses the state (see the top of this file).
+enum class Access {
+  Pull,     // two levels: gather from src, store to the node's own entries in dst
+  SwapOut,  // in place, even step: gather as Pull, store g_m into slot opposite(m) of q + c_m
+  SwapIn,   // in place, odd step: f_m from the node's own slot opposite(m), g_m into its slot m
+};
+
 template <typename Real, typename Store = Real>
 class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess, public SlabHalo {
   // One SIMD chunk = one cache line of one direction array.
@@ -176,7 +191,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         threads_(threads),
         stores_(options.stores),
         flush_denormals_(options.flush_denormals),
-        time_block_option_(options.time_block) {
+        time_block_option_(options.time_block),
+        in_place_(options.layout == StateLayout::InPlace) {
     check_geometry(g, "cpu");
     density_ = g.density;
     material_ = g.material;
@@ -199,6 +215,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     plane_ = pitch_ * d_.ny;
     stride_ = padded_stride(static_cast<std::size_t>(plane_ * d_.nz));
     slots_.resize(static_cast<std::size_t>(capacity_));
+    if (in_place_) list_edges();
   }
 
   int capacity() const override { return capacity_; }
@@ -214,22 +231,26 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       slot.spec = batch[s];
       slot.stride = stride_;
       if (slot.state.size() == 0) {
-        slot.state.allocate(2 * kQ * stride_);
+        slot.state.allocate(levels() * kQ * stride_);
         slot.totals.allocate(n_);
         slot.scratch.allocate(n_);
       }
-      fill(slot.state.data(), 2 * kQ * stride_, Store(0));
-      for (int level = 0; level < 2; ++level) set_boundary(slot, level);
+      fill(slot.state.data(), levels() * kQ * stride_, Store(0));
+      for (int level = 0; level < levels(); ++level) set_boundary(slot, level);
       const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
       init_totals(slot.totals.data(), total);
       init_totals(slot.scratch.data(), total);
     }
     now_ = 0;
     cur_ = 0;
-    const double state_bytes = static_cast<double>(active_) * 2.0 * kQ * stride_ * sizeof(Store);
+    swapped_ = false;
+    const double state_bytes = static_cast<double>(active_) * levels() * kQ * stride_ * sizeof(Store);
     const double cache = static_cast<double>(host_last_level_cache_bytes());
-    stream_ = kCanStream && (stores_ == StoreMode::Streaming || (stores_ == StoreMode::Auto && state_bytes > 2.0 * cache));
-    time_block_ = time_block_option_ > 0 ? time_block_option_ : auto_time_block(state_bytes / std::max(active_, 1), cache);
+    stream_ = kCanStream && !in_place_ &&
+              (stores_ == StoreMode::Streaming || (stores_ == StoreMode::Auto && state_bytes > 2.0 * cache));
+    time_block_ = in_place_ ? 1
+                  : time_block_option_ > 0 ? time_block_option_
+                                           : auto_time_block(state_bytes / std::max(active_, 1), cache);
   }
 
   void step(int steps) override {
@@ -239,6 +260,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       // step only advances the clock.
       now_ = 1;
       done = 1;
+    }
+    if (in_place_) {
+      for (; done < steps; ++done, ++now_) {
+        for (int s = 0; s < active_; ++s) step_in_place(slots_[static_cast<std::size_t>(s)]);
+        swapped_ = !swapped_;
+      }
+      return;
     }
     while (done < steps) {
       const int depth = std::min(time_block_, steps - done);
@@ -306,7 +334,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     for (int m = 0; m < kQ; ++m)
       for (int z = 0; z < d_.nz; ++z) {
         const double b = slot.spec.boundary[m];
-        const long long shift = d3q19::cx(m) + d3q19::cy(m) * pitch_ + d3q19::cz(m) * plane_;
+        // swapped (in place, after a swap-out step): f_m(q) is q's own slot opposite(m)
+        const int from = swapped_ ? d3q19::opposite(m) : m;
+        const long long shift = swapped_ ? 0 : d3q19::cx(m) + d3q19::cy(m) * pitch_ + d3q19::cz(m) * plane_;
         for (int y = 0; y < d_.ny; ++y) {
           double* out = f.data() + static_cast<std::size_t>(m) * n_ + d_.index(0, y, z);
           if (z == 0 || z == d_.nz - 1 || y == 0 || y == d_.ny - 1) {
@@ -315,7 +345,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           }
           out[0] = out[nx - 1] = b;
           if (now_ == 0) continue;  // the interior is 0 before the first step
-          const Store* src = g + static_cast<std::size_t>(m) * stride_ + (state_index(0, y, z) - shift);
+          const Store* src = g + static_cast<std::size_t>(from) * stride_ + (state_index(0, y, z) - shift);
           for (int x = 1; x < nx - 1; ++x) out[x] = static_cast<double>(src[x]);
         }
       }
@@ -326,6 +356,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void write_state(int system, const std::vector<double>& f) override {
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
+    unswap();
     if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
     Store* g = slot.buffer(cur_);
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
@@ -349,6 +380,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   void step_layers(int z_lo, int z_hi) override {
+    require_two_levels("the slab halo");
     if (now_ > 0)
       for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)], z_lo, z_hi);
   }
@@ -357,11 +389,14 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     ++now_;
   }
 
+  // In place, the slab halo would have to follow the swapped layout: the mpi backend keeps two levels.
   void read_layer(int system, int z, int sign, double* out) const override {
+    require_two_levels("the slab halo");
     const Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
     for_layer(z, sign, [&](std::size_t k, std::size_t at) { out[k] = static_cast<double>(g[at]); });
   }
   void write_layer(int system, int z, int sign, const double* in) override {
+    require_two_levels("the slab halo");
     Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
     for_layer(z, sign, [&](std::size_t k, std::size_t at) { g[at] = static_cast<Store>(in[k]); });
   }
@@ -371,6 +406,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
                 const std::vector<std::uint8_t>& /*material: the solver's own*/) override {
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (phi.size() != n_) throw std::invalid_argument("add_mode: wrong size");
+    unswap();
     if (now_ == 0) now_ = 1;  // as write_state
     Store* g = slot.buffer(cur_);
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
@@ -394,6 +430,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     std::size_t bytes = density_.size() * sizeof(float) + material_.size() + wood_.size() * sizeof(float);
     for (const Slot& s : slots_) bytes += s.state.size() * sizeof(Store) + (s.totals.size() + s.scratch.size()) * sizeof(Real);
     for (const auto& v : vectors_) bytes += v.size() * sizeof(Store);
+    bytes += (edges_in_.size() + edges_out_.size()) * sizeof(Edge);
     return bytes;
   }
 
@@ -410,12 +447,14 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   void vector_from_state(int v) override {
+    unswap();
     Slot& slot = slots_.front();
     copy(slot.buffer(cur_), vec(v));
     zero_boundary(vec(v));
   }
 
   void vector_to_state(int v) override {
+    unswap();
     Slot& slot = slots_.front();
     copy(vec(v), slot.buffer(cur_));
     set_boundary(slot, cur_);
@@ -425,10 +464,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void vector_step_offset(int v) override {
     // b = T(0): one step from a zero interior with the real boundary values, built in the
     // free time level.
+    // (in place there is no free level: a temporary one)
     Slot& slot = slots_.front();
-    Store* zero = slot.buffer(1 - cur_);
+    AlignedBuffer<Store> spare;
+    if (in_place_) spare.allocate(kQ * stride_);
+    Store* zero = in_place_ ? spare.data() : slot.buffer(1 - cur_);
     fill(zero, kQ * stride_, Store(0));
-    set_boundary(slot, 1 - cur_);
+    set_boundary(slot, zero);
     fill(vec(v), kQ * stride_, Store(0));
     sweep_system(slot, zero, vec(v));
   }
@@ -560,8 +602,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
   }
 
-  // f_m(q) = g_m(q - c_m): the pre-collision values of node q.
+  // f_m(q) = g_m(q - c_m): the pre-collision values of node q (swapped: q's own slots opposite(m)).
   void gather(const Store* g, long long q, Real (&f)[kQ]) const {
+    if (swapped_) {
+      for (int m = 0; m < kQ; ++m)
+        f[m] = static_cast<Real>(g[static_cast<std::size_t>(d3q19::opposite(m)) * stride_ + static_cast<std::size_t>(q)]);
+      return;
+    }
     for (int m = 0; m < kQ; ++m)
       f[m] = static_cast<Real>(g[static_cast<std::size_t>(m) * stride_ +
                                  static_cast<std::size_t>(q - d3q19::cx(m) - d3q19::cy(m) * pitch_ - d3q19::cz(m) * plane_)]);
@@ -591,8 +638,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     for (std::size_t i = 0; i < count; ++i) p[i] = v;
   }
 
-  void set_boundary(const Slot& slot, int level) const {
-    Store* g = const_cast<Store*>(slot.buffer(level));
+  void set_boundary(const Slot& slot, int level) const { set_boundary(slot, const_cast<Store*>(slot.buffer(level))); }
+  void set_boundary(const Slot& slot, Store* g) const {
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x)
@@ -606,6 +653,82 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     for (int z = 0; z < d_.nz; ++z)
       for (int y = 0; y < d_.ny; ++y)
         for (int x = 0; x < d_.nx; ++x) t[d_.index(x, y, z)] = initial_total(d_, x, y, z, boundary_total);
+  }
+
+  int levels() const { return in_place_ ? 1 : 2; }
+
+  void require_two_levels(const char* what) const {
+    if (in_place_) throw std::logic_error(std::string(what) + " needs the cpu solver's two-level state layout");
+  }
+
+  // The boundary entries the in-place steps must set, as state offsets: edges_in_ before a
+  // swap-out step, the entries f_m(q) fed by a boundary node (q - c_m on the boundary, stored
+  // swapped in q's slot opposite(m), which no interior node writes that step: boundary value m,
+  // the opposite of the entry's direction array); edges_out_ after a swap-in step, the boundary
+  // node entries a swap-out step overwrote with outgoing values (slot opposite(m) of q + c_m on
+  // the boundary), back to their fixed value (that of the entry's direction array).
+  using Edge = std::size_t;
+  void list_edges() {
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x) {
+          if (x > 1 && x < d_.nx - 2 && y > 1 && y < d_.ny - 2 && z > 1 && z < d_.nz - 2) continue;
+          const long long q = state_index(x, y, z);
+          for (int m = 1; m < kQ; ++m) {
+            const int cx = d3q19::cx(m), cy = d3q19::cy(m), cz = d3q19::cz(m);
+            const std::size_t opp = static_cast<std::size_t>(d3q19::opposite(m)) * stride_;
+            if (d_.is_boundary(x - cx, y - cy, z - cz)) edges_in_.push_back(opp + static_cast<std::size_t>(q));
+            if (d_.is_boundary(x + cx, y + cy, z + cz)) edges_out_.push_back(opp + static_cast<std::size_t>(q + shift(m)));
+          }
+        }
+  }
+
+  // One in-place step of one system: a swap-out step from the natural layout, a swap-in step
+  // back to it.
+  void step_in_place(Slot& slot) {
+    const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
+    const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+    Store* g = slot.buffer(0);
+    const auto& b = slot.spec.boundary;
+    if (!swapped_) {
+      for (const Edge e : edges_in_) g[e] = static_cast<Store>(b[static_cast<std::size_t>(d3q19::opposite(static_cast<int>(e / stride_)))]);
+      sweep<false, Access::SwapOut>(g, g, ops, absorb_bits, 1, d_.nz - 2);
+    } else {
+      sweep<false, Access::SwapIn>(g, g, ops, absorb_bits, 1, d_.nz - 2);
+      for (const Edge e : edges_out_) g[e] = static_cast<Store>(b[e / stride_]);
+    }
+  }
+
+  // Back to the natural layout after a swap-out step, for the operations that address the state
+  // as two levels do (write_state, add_mode, the Krylov vectors): per pair of opposite
+  // directions, g_m(q) is the swapped entry at slot opposite(m) of q + c_m. One direction array
+  // of temporary memory; the same values as the swap-in step's inputs, so the bits are kept.
+  void unswap() {
+    if (!swapped_) return;
+    AlignedBuffer<Store> tmp(stride_);
+    for (int s = 0; s < active_; ++s) {
+      Slot& slot = slots_[static_cast<std::size_t>(s)];
+      Store* g = slot.buffer(0);
+      for (int m = 1; m < kQ; m += 2) {
+        const int o = d3q19::opposite(m);
+        Store* gm = g + static_cast<std::size_t>(m) * stride_;
+        Store* go = g + static_cast<std::size_t>(o) * stride_;
+        std::copy_n(gm, stride_, tmp.data());
+        const long long sm = shift(m);
+        const Store* was_m = tmp.data();
+        for (int pass = 0; pass < 2; ++pass)  // gm first (it reads go), then go from the copy of gm
+#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+          for (int z = 1; z < d_.nz - 1; ++z)
+            for (int y = 1; y < d_.ny - 1; ++y)
+              for (int x = 1; x < d_.nx - 1; ++x) {
+                const long long q = state_index(x, y, z);
+                if (pass == 0) gm[q] = go[q + sm];  // g_m(q): slot opposite(m) of q + c_m
+                else go[q] = was_m[q - sm];         // g_o(q): slot m of q + c_o = q - c_m
+              }
+      }
+      set_boundary(slot, 0);
+    }
+    swapped_ = false;
   }
 
   void step_system(Slot& slot, int z_lo = 1, int z_hi = -1) {
@@ -640,7 +763,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // after_row(y, z) runs on the sweeping thread right after row (y, z) is written.
-  template <bool kStream, typename AfterRow = void (*)(int, int)>
+  // In place (A != Pull), src is not used: dst is the one level.
+  template <bool kStream, Access A = Access::Pull, typename AfterRow = void (*)(int, int)>
   void sweep(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
              unsigned absorb_bits, int z_lo, int z_hi, AfterRow&& after_row = [](int, int) {}) const {
 #pragma omp parallel num_threads(threads_)
@@ -649,7 +773,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 #pragma omp for collapse(2) schedule(dynamic, 8)
       for (int z = z_lo; z <= z_hi; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
-          sweep_row<kStream>(src, dst, ops, absorb_bits, y, z);
+          sweep_row<kStream, A>(src, dst, ops, absorb_bits, y, z);
           after_row(y, z);
         }
       if (kStream) stream_fence();  // make this thread's streaming stores visible before the barrier
@@ -760,7 +884,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // One row's pull update: the row's materials pick the kernel (classify_rows).
-  template <bool kStream>
+  template <bool kStream, Access A = Access::Pull>
   LBL_FORCEINLINE void sweep_row(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
                                  unsigned absorb_bits, int y, int z) const {
     const std::size_t r = static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1);
@@ -768,10 +892,72 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     if ((mask & (mask - 1)) == 0) {
       const int k = __builtin_ctz(mask);
       const Real keep = f0_keep<Real>(absorb_bits, static_cast<unsigned>(k));
-      if (row_empty_[r]) stream_row<kStream>(src, dst, y, z, keep);
-      else uniform_row<kStream>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
+      if (row_empty_[r]) stream_row<kStream, A>(src, dst, y, z, keep);
+      else uniform_row<kStream, A>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
     } else {
-      mixed_row<kStream>(src, dst, y, z, ops, absorb_bits);
+      mixed_row<kStream, A>(src, dst, y, z, ops, absorb_bits);
+    }
+  }
+
+  template <bool kStream, Access A, typename Node>
+  LBL_FORCEINLINE void run(const Store* __restrict src, Store* __restrict dst, int y, int z, Node&& node) const {
+    if constexpr (A == Access::Pull) run_row<kStream>(src, dst, y, z, node);
+    else run_row_in_place<A>(dst, y, z, node);
+  }
+
+  // Offset of q - c_m from q in the state layout.
+  LBL_FORCEINLINE long long shift(int m) const {
+    return d3q19::cx(m) + d3q19::cy(m) * pitch_ + d3q19::cz(m) * plane_;
+  }
+
+  // run_row for the in-place steps: g is the one level, read and written by the same nodes.
+  // No shifted last chunk (a node computed twice would read its own output): the remainder is a
+  // shorter chunk. 16-bit storage converts whole chunks as run_row does, the remainder by value.
+  template <Access A, typename Node>
+  LBL_FORCEINLINE void run_row_in_place(Store* g, int y, int z, Node&& node) const {
+    const int nx = d_.nx;
+    const long long row = state_index(0, y, z);
+    const long long stride = static_cast<long long>(stride_);
+    // where node x's f_m comes from, and where its post-collision g_m goes
+    auto from = [&](int m, int x) LBL_INLINE_LAMBDA {
+      return A == Access::SwapOut ? m * stride + row + x - shift(m) : d3q19::opposite(m) * stride + row + x;
+    };
+    auto to = [&](int m, int x) LBL_INLINE_LAMBDA {
+      return A == Access::SwapOut ? d3q19::opposite(m) * stride + row + x + shift(m) : m * stride + row + x;
+    };
+    if constexpr (kCanStream) {
+      auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+        LBL_UNROLL
+        for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[from(m, x)]);
+      };
+#pragma omp simd
+      for (int x = 1; x < nx - 1; ++x)
+        node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[to(m, x)] = static_cast<Store>(v); });
+    } else {
+      alignas(64) Real stage[kQ][kLine];
+      alignas(64) Real post[kQ][kLine];
+      for (int x0 = 1; x0 <= nx - 2; x0 += kLine) {
+        const int count = std::min(kLine, nx - 1 - x0);
+        if (count == kLine)
+          for (int m = 0; m < kQ; ++m) halves_to_reals<kLine>(g + from(m, x0), stage[m]);
+        else
+          for (int m = 0; m < kQ; ++m)
+            for (int l = 0; l < count; ++l) stage[m][l] = static_cast<Real>(g[from(m, x0 + l)]);
+#pragma omp simd
+        for (int l = 0; l < count; ++l)
+          node(
+              x0 + l,
+              [&](int, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+                LBL_UNROLL
+                for (int m = 0; m < kQ; ++m) f[m] = stage[m][l];
+              },
+              [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
+        if (count == kLine)
+          for (int m = 0; m < kQ; ++m) reals_to_halves<kLine>(post[m], g + to(m, x0));
+        else
+          for (int m = 0; m < kQ; ++m)
+            for (int l = 0; l < count; ++l) g[to(m, x0 + l)] = static_cast<Store>(post[m][l]);
+      }
     }
   }
 
@@ -854,9 +1040,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // Row with no medium: collision is the identity, only streaming remains.
-  template <bool kStream>
+  template <bool kStream, Access A>
   void stream_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Real keep) const {
-    run_row<kStream>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+    run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       load(x, f);
       f[0] *= keep;
@@ -865,11 +1051,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     });
   }
 
-  template <bool kStream>
+  template <bool kStream, Access A>
   void uniform_row(const Store* __restrict src, Store* __restrict dst, int y, int z, const CollisionOp<Real>& op,
                    Real keep) const {
     const float* __restrict rho = density_.data() + d_.index(0, y, z);
-    run_row<kStream>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+    run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       load(x, f);
       collide_node(op, keep, static_cast<Real>(rho[x]), f, sink);
@@ -881,7 +1067,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // each term exact where it does not apply (rho 0 gives f~ exactly), with the node's own f_0
   // treatment. (A GPU simply picks the node's operator; this form is what GCC vectorises:
   // operator selection, integer compares and byte loads in the loop all stop it.)
-  template <bool kStream>
+  template <bool kStream, Access A>
   void mixed_row(const Store* __restrict src, Store* __restrict dst, int y, int z,
                  const std::array<CollisionOp<Real>, kMaxMaterials>& ops, unsigned absorb_bits) const {
     const std::size_t base = d_.index(0, y, z);
@@ -891,7 +1077,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const Real keep1 = f0_keep<Real>(absorb_bits, kMaterialWood);
     const CollisionOp<Real>& medium = ops[kMaterialMedium];
     const CollisionOp<Real>& woody = ops[kMaterialWood];
-    run_row<kStream>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+    run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       load(x, f);
       const Real w = static_cast<Real>(wood[x]);
@@ -930,6 +1116,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   bool stream_ = false;
   int time_block_option_ = 0;
   int time_block_ = 1;  // steps per pass over the lattice (wavefront); from the option at reset
+  bool in_place_ = false;  // one level, AA pattern (StateLayout::InPlace)
+  bool swapped_ = false;   // in place: the last step was a swap-out step (odd steps since reset)
+  std::vector<Edge> edges_in_, edges_out_;
 };
 
 class OpenMpBackend final : public Backend {
@@ -946,6 +1135,13 @@ class OpenMpBackend final : public Backend {
     const std::size_t padded = static_cast<std::size_t>(d.nx + 64) * static_cast<std::size_t>(d.ny) *
                                static_cast<std::size_t>(d.nz);
     return 2 * kQ * padded * v + 2 * d.count() * totals;
+  }
+  // One level, plus the surface lists of the boundary entries (two per node of the faces, about).
+  std::size_t bytes_per_system_in_place(const Dims& d, Precision p) const override {
+    const std::size_t surface = 2 * (static_cast<std::size_t>(d.nx) * d.ny + static_cast<std::size_t>(d.ny) * d.nz +
+                                     static_cast<std::size_t>(d.nx) * d.nz);
+    const std::size_t two = bytes_per_system(d, p), level = (two - 2 * d.count() * (p == Precision::Float64 ? 8 : 4)) / 2;
+    return two - level + surface * 10 * sizeof(std::size_t);
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return host_memory_limit().bytes; }

@@ -76,6 +76,11 @@ struct Residual {
 // ownership but bypass the caches, so they pay off only for lattices larger than the cache.
 enum class StoreMode { Auto, Regular, Streaming };
 
+// How many copies of the lattice state a solver keeps (docs/performance.md, "In-place streaming"):
+// two time levels, or one updated in place by the AA pattern (half the state memory, the same
+// bits, no temporal blocking). A backend that does not offer in place refuses it at create().
+enum class StateLayout { TwoLevels, InPlace };
+
 struct SolverOptions {
   Precision precision = Precision::Float32;
   int max_systems = 0;  // systems per batch; 0 lets the backend choose from its memory
@@ -90,6 +95,7 @@ struct SolverOptions {
   // cache size (1 where the state fits in the cache anyway). Results are the same bits for any
   // value. GPU backends ignore it.
   int time_block = 0;
+  StateLayout layout = StateLayout::TwoLevels;
 };
 
 // A solver has up to three parts, one per client (docs/architecture.md, "The backend seam"):
@@ -191,6 +197,8 @@ class Backend {
   virtual bool writes_output() const { return true; }
   // Memory one system needs, and what the device has free, for planning batches.
   virtual std::size_t bytes_per_system(const Dims& dims, Precision p) const = 0;
+  // The same with StateLayout::InPlace; 0 where the backend does not offer it.
+  virtual std::size_t bytes_per_system_in_place(const Dims&, Precision) const { return 0; }
   virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;
   virtual std::size_t available_bytes() const = 0;
   // Systems a batch should hold when memory allows: the CPU gains nothing from more than one
