@@ -14,9 +14,10 @@ void ProgressLog::model_started(const ModelPlan& mp, const Backend& backend, std
     done_ = 0;
   }
   const Dims& d = mp.lattice.dims;
-  spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice)",
+  const bool in_place = state_layout(mp, backend, {}) == StateLayout::InPlace;
+  spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice{})",
                mp.spec->name, d.nx, d.ny, d.nz, mp.solutions.size(), mp.channels.size(), backend.name(),
-               format_bytes(static_cast<double>(bytes)));
+               format_bytes(static_cast<double>(bytes)), in_place ? ", state updated in place" : "");
   if (!mp.steps.method_note.empty()) spdlog::info("model '{}': {}", mp.spec->name, mp.steps.method_note);
   last_beat_ = std::chrono::steady_clock::now();
 }

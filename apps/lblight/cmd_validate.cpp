@@ -120,7 +120,8 @@ int run_validate(const ValidateArgs& args) {
       text << ", " << mp.steps.fixed_steps << " per solution";
     text << "\n  memory: " << format_bytes(memory) << " on the " << backend->name() << " backend ("
          << cost.batch_systems << " system(s) of " << format_bytes(static_cast<double>(cost.bytes_per_system))
-         << " per batch), " << format_bytes(cost.host_result_bytes) << " of results on the host\n";
+         << " per batch, state " << to_string(cost.layout) << "), " << format_bytes(cost.host_result_bytes)
+         << " of results on the host\n";
     // The scene may be meant for a bigger machine, so here it is a warning.
     if (!cost.fits) spdlog::warn("{}; bake would fail on this machine", cost.why_not);
     if (ups > 0)

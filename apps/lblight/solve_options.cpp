@@ -42,6 +42,11 @@ void SolveOptions::add_plan_options(CLI::App& cmd) {
       ->check(CLI::IsMember({"plain", "bicgstab", "dsa"}));
   cmd.add_option("--precision", precision, "Lattice storage: float32, float64 (cpu) or float16 (cuda)")
       ->check(CLI::IsMember({"float32", "float64", "float16"}));
+  cmd.add_option("--state", state,
+                 "Lattice state in memory: two-levels (two copies, needed for the CPU's temporal blocking), "
+                 "in-place (one copy updated by the AA pattern: half the memory, the same results; cpu backend) "
+                 "or auto (two levels unless only in place fits; default: the scene's)")
+      ->check(CLI::IsMember({"auto", "two-levels", "in-place"}));
 }
 
 PlanOverrides SolveOptions::overrides() const {
@@ -57,6 +62,7 @@ PlanOverrides SolveOptions::overrides() const {
   if (tolerance > 0) ov.tolerance = tolerance;
   if (!precision.empty()) ov.precision = parse_precision(precision);
   if (!method.empty()) ov.method = parse_solver_method(method).value_or(SolverMethod::Plain);
+  if (!state.empty() && state != "auto") ov.state = parse_state_layout(state);
   return ov;
 }
 
@@ -74,6 +80,7 @@ std::vector<std::string> SolveOptions::plan_arguments() const {
   }
   pass("--precision", precision);
   pass("--method", method);
+  pass("--state", state);
   return args;
 }
 

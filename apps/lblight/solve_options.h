@@ -24,6 +24,7 @@ struct SolveOptions {
   double tolerance = 0;    // 0 = the scene's
   std::string precision;   // empty = the scene's
   std::string method;      // empty = the scene's
+  std::string state;       // empty = the scene's
 
   void add_to(CLI::App& cmd);
   // The scene and what changes its plan (--solutions, --iterations, --tolerance, --method,

@@ -240,6 +240,8 @@ class MpiBackend final : public Backend {
   std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
                                         const SolverOptions& options) const override {
     check_geometry(g, "mpi");
+    if (options.layout == StateLayout::InPlace)
+      throw Error(ErrorCategory::Unavailable, "--backend mpi keeps two levels of lattice state; use state two-levels or auto");
     if (g.dims.nz - 2 < ranks_)
       throw Error(ErrorCategory::InvalidInput, "--backend mpi: " + std::to_string(ranks_) + " ranks for a lattice of " +
                                                    std::to_string(g.dims.nz - 2) +

@@ -76,11 +76,6 @@ struct Residual {
 // ownership but bypass the caches, so they pay off only for lattices larger than the cache.
 enum class StoreMode { Auto, Regular, Streaming };
 
-// How many copies of the lattice state a solver keeps (docs/performance.md, "In-place streaming"):
-// two time levels, or one updated in place by the AA pattern (half the state memory, the same
-// bits, no temporal blocking). A backend that does not offer in place refuses it at create().
-enum class StateLayout { TwoLevels, InPlace };
-
 struct SolverOptions {
   Precision precision = Precision::Float32;
   int max_systems = 0;  // systems per batch; 0 lets the backend choose from its memory
@@ -95,6 +90,7 @@ struct SolverOptions {
   // cache size (1 where the state fits in the cache anyway). Results are the same bits for any
   // value. GPU backends ignore it.
   int time_block = 0;
+  // A backend that does not offer InPlace (bytes_per_system_in_place() == 0) refuses it at create().
   StateLayout layout = StateLayout::TwoLevels;
 };
 

@@ -16,6 +16,13 @@ inline const char* to_string(Precision p) {
   return "?";
 }
 
+// How many copies of the lattice state a solver keeps (docs/performance.md, "In-place
+// streaming"): two time levels, or one updated in place by the AA pattern (half the state
+// memory, the same bits, no temporal blocking).
+enum class StateLayout { TwoLevels, InPlace };
+
+inline const char* to_string(StateLayout s) { return s == StateLayout::InPlace ? "in-place" : "two-levels"; }
+
 inline double bytes_per_value(Precision p) {
   return p == Precision::Float64 ? 8.0 : (p == Precision::Float16 ? 2.0 : 4.0);
 }

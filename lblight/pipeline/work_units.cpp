@@ -84,6 +84,7 @@ nlohmann::json plan_overrides_json(const PlanOverrides& ov) {
   if (ov.tolerance) j["tolerance"] = *ov.tolerance;
   if (ov.precision) j["precision"] = static_cast<int>(*ov.precision);
   if (ov.method) j["method"] = static_cast<int>(*ov.method);
+  if (ov.state) j["state"] = to_string(*ov.state);
   return j;
 }
 
@@ -135,6 +136,7 @@ PlanOverrides plan_overrides_from_json(const nlohmann::json& j) {
   if (j.contains("tolerance")) ov.tolerance = j["tolerance"].get<double>();
   if (j.contains("precision")) ov.precision = static_cast<Precision>(j["precision"].get<int>());
   if (j.contains("method")) ov.method = static_cast<SolverMethod>(j["method"].get<int>());
+  if (j.contains("state")) ov.state = parse_state_layout(j["state"].get<std::string>());
   return ov;
 }
 

@@ -135,6 +135,7 @@ struct SolverSpec {
   int max_iterations = 0;      // Auto: cap; 0 = 100 x longest lattice edge
   int check_interval = 0;      // steps between convergence checks; 0 = automatic
   Precision precision = Precision::Float32;
+  std::optional<StateLayout> state;  // "state": "two-levels", "in-place"; unset ("auto"): as memory allows
   LbModel model;               // "model": "paper" (default) or "calibrated", with "calibration"
 };
 
@@ -187,6 +188,8 @@ const char* to_string(SolverMethod method);
 // "plain", "bicgstab" or "dsa"; nullopt for anything else.
 std::optional<SolverMethod> parse_solver_method(const std::string& name);
 inline constexpr const char* kSolverMethodNames = "plain, bicgstab, dsa";
+// "two-levels" or "in-place"; nullopt for anything else ("auto" included).
+std::optional<StateLayout> parse_state_layout(const std::string& name);
 const char* to_string(SourceType type);
 
 }  // namespace lblight

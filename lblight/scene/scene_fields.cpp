@@ -189,6 +189,7 @@ std::vector<ObjectSpec> build() {
                 integer("check_interval", 1, 100000, 0, "1..100000 (default: from the lattice size)"),
                 text("precision", "float32", {"float32", "float64", "float16"}, "float32, float64, float16"),
                 text("method", "plain", {"plain", "bicgstab", "dsa"}, kSolverMethodNames),
+                text("state", "auto", {"auto", "two-levels", "in-place"}, "auto, two-levels, in-place"),
                 text("model", "paper", {"paper", "calibrated"}, "paper, calibrated"),
                 custom("calibration", ref("solver.calibration"), "the calibrated model's corrections, each on or off")}});
   ObjectSpec calibration{"solver.calibration", "Corrections of the calibrated LB model (docs/model.md).", {}};

@@ -38,6 +38,12 @@ std::optional<SolverMethod> parse_solver_method(const std::string& name) {
   return std::nullopt;
 }
 
+std::optional<StateLayout> parse_state_layout(const std::string& name) {
+  for (StateLayout s : {StateLayout::TwoLevels, StateLayout::InPlace})
+    if (name == to_string(s)) return s;
+  return std::nullopt;
+}
+
 const char* to_string(SourceType type) {
   switch (type) {
     case SourceType::Procedural: return "procedural";
@@ -473,6 +479,9 @@ SolverSpec read_solver(const JsonReader& r) {
   else if (prec == "float64") s.precision = Precision::Float64;
   else if (prec == "float16") s.precision = Precision::Float16;
   else r.fail("unknown precision '" + prec + "'; allowed: float32, float64, float16", "precision");
+  const std::string state = string_field(r, o, "state");
+  if (const auto layout = parse_state_layout(state)) s.state = *layout;
+  else if (state != "auto") r.fail("unknown state layout '" + state + "'; allowed: auto, two-levels, in-place", "state");
   const std::string model = string_field(r, o, "model");
   if (model == "calibrated") s.model.calibrated = true;
   else if (model != "paper") r.fail("unknown LB model '" + model + "'; allowed: paper, calibrated", "model");

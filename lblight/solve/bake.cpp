@@ -331,31 +331,76 @@ int balanced_batch(int total, int capacity, int channels) {
   return even;
 }
 
+namespace {
+
+// Systems a batch should hold before memory is considered (batch_capacity).
+int wanted_systems(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
+  const int channels = std::max(1, static_cast<int>(mp.channels.size()));
+  const int total = static_cast<int>(mp.systems());
+  const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
+  int want = opt.max_systems > 0 ? opt.max_systems
+                                 : backend.preferred_batch(mp.lattice.dims, mp.steps.precision, total);
+  want = krylov ? 1 : std::max(1, std::min(want, total));
+  // A backend's own choice covers at least one whole solution (its channels share the launch).
+  if (!krylov && opt.max_systems <= 0) want = std::max(want, std::min(channels, total));
+  return want;
+}
+
+std::size_t state_bytes(const ModelPlan& mp, const Backend& backend, StateLayout layout) {
+  return layout == StateLayout::InPlace ? backend.bytes_per_system_in_place(mp.lattice.dims, mp.steps.precision)
+                                        : backend.bytes_per_system(mp.lattice.dims, mp.steps.precision);
+}
+
+// Systems of `per_system` bytes that fit the device's free memory next to the lattice and the
+// Krylov vectors (8 more state-sized arrays, about 4 systems' worth); -1 when it is not known.
+int systems_that_fit(const ModelPlan& mp, const Backend& backend, std::size_t per_system) {
+  const std::size_t avail = backend.available_bytes();
+  if (avail == 0) return -1;
+  const std::size_t extra = mp.steps.method == SolverMethod::BiCGStab ? 4 * per_system : 0;
+  // keep a tenth of the free memory for everything else
+  const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(backend.bytes_per_lattice(mp.lattice.dims) + extra);
+  return usable > 0 ? static_cast<int>(usable / static_cast<double>(per_system)) : 0;
+}
+
+}  // namespace
+
+StateLayout state_layout(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
+  const bool offered = state_bytes(mp, backend, StateLayout::InPlace) > 0;
+  if (mp.steps.state) {
+    if (*mp.steps.state == StateLayout::InPlace && !offered)
+      throw Error(ErrorCategory::Unavailable, "state \"in-place\": the " + backend.name() +
+                                                  " backend keeps two levels of lattice state; use \"two-levels\" or "
+                                                  "\"auto\" (solver.state or --state)");
+    return *mp.steps.state;
+  }
+  if (!offered) return StateLayout::TwoLevels;
+  const int fit = systems_that_fit(mp, backend, state_bytes(mp, backend, StateLayout::TwoLevels));
+  const int whole = std::min(wanted_systems(mp, backend, opt),
+                             std::max(1, std::min(static_cast<int>(mp.channels.size()), static_cast<int>(mp.systems()))));
+  return fit >= 0 && fit < whole ? StateLayout::InPlace : StateLayout::TwoLevels;
+}
+
 // Krylov solves take one system at a time (their vectors belong to system 0).
 int batch_capacity(const ModelPlan& mp, const Backend& backend, const BakeOptions& opt) {
   const Dims& d = mp.lattice.dims;
-  const std::size_t per_system = backend.bytes_per_system(d, mp.steps.precision);
+  const StateLayout layout = state_layout(mp, backend, opt);
+  const std::size_t per_system = state_bytes(mp, backend, layout);
   const std::size_t fixed = backend.bytes_per_lattice(d);
   const std::size_t avail = backend.available_bytes();
   const int channels = std::max(1, static_cast<int>(mp.channels.size()));
   const int total = static_cast<int>(mp.systems());
   const bool krylov = mp.steps.method == SolverMethod::BiCGStab;
-  int want = opt.max_systems > 0 ? opt.max_systems : backend.preferred_batch(d, mp.steps.precision, total);
-  want = krylov ? 1 : std::max(1, std::min(want, total));
-  // A backend's own choice covers at least one whole solution (its channels share the launch).
-  if (!krylov && opt.max_systems <= 0) want = std::max(want, std::min(channels, total));
-  // Krylov vectors: 8 more state-sized arrays (about 4 systems' worth).
+  int want = wanted_systems(mp, backend, opt);
   const std::size_t extra = krylov ? 4 * per_system : 0;
   if (avail > 0) {
-    // keep a tenth of the free memory for everything else
-    const double usable = 0.9 * static_cast<double>(avail) - static_cast<double>(fixed + extra);
-    const int fit = usable > 0 ? static_cast<int>(usable / static_cast<double>(per_system)) : 0;
+    const int fit = systems_that_fit(mp, backend, per_system);
     if (fit < 1)
       throw Error(ErrorCategory::Unavailable,
                   "model '" + mp.spec->name + "': a " + std::to_string(d.nx) + "x" + std::to_string(d.ny) + "x" +
                       std::to_string(d.nz) + " lattice needs " + gib(static_cast<double>(fixed + extra + per_system)) + " on the " +
                       backend.name() + " backend but only " + gib(static_cast<double>(avail)) +
-                      " is available; lower the resolution or use a machine with more memory");
+                      " is available" + (layout == StateLayout::InPlace ? std::string(" (with the state in place)") : "") +
+                      "; lower the resolution or use a machine with more memory");
     want = std::min(want, fit);
   }
   if (want > channels) want -= want % channels;  // whole solutions per batch
@@ -515,6 +560,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   SolverOptions so;
   so.precision = mp.steps.precision;
   so.max_systems = capacity;
+  so.layout = state_layout(mp, backend, opt);
   auto solver = backend.create(mp.lattice, mp.channels, so);
   if (mp.steps.method == SolverMethod::BiCGStab) krylov_vectors_of(*solver, backend.name());  // offered, or stop here
   std::vector<std::unique_ptr<DiffusionCorrection>> corrections;  // DSA: one per channel

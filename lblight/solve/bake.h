@@ -87,7 +87,13 @@ struct BakeOptions {
 // Systems per batch for `model` on `backend`: the backend's preference (or options.max_systems),
 // at least one whole solution when the backend chooses, whole solutions where possible, within
 // the device's free memory (Error(Unavailable) when not even one system fits), then evened out.
+// Each system's state in the layout state_layout() picks.
 int batch_capacity(const ModelPlan& model, const Backend& backend, const BakeOptions& options);
+// The state layout bake_model creates its solver with: the plan's (model.steps.state; in place
+// on a backend without it is Error(Unavailable)), else two levels (temporal blocking needs them)
+// unless the device's free memory holds fewer than one whole solution's systems that way and the
+// backend can run them in place.
+StateLayout state_layout(const ModelPlan& model, const Backend& backend, const BakeOptions& options);
 // The smallest batch size that needs no more batches than `capacity` does, a multiple of
 // `channels` when `capacity` is: 57 systems at capacity 18 run as 15+15+15+12.
 int balanced_batch(int total, int capacity, int channels);

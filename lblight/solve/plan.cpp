@@ -272,6 +272,7 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
   st.mode = ov.mode.value_or(scene.solver.mode);
   st.method = ov.method.value_or(scene.solver.method);
   st.precision = precision;
+  st.state = ov.state ? ov.state : scene.solver.state;
   if (st.method != SolverMethod::Plain && st.mode != IterationMode::Auto)
     throw_invalid(std::string("solver method ") + to_string(st.method) + " needs iterations \"auto\" (it stops on the error estimate), not " +
                       std::string(st.mode == IterationMode::Paper ? "\"paper\"" : "a fixed step count") +

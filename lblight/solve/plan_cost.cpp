@@ -12,6 +12,8 @@ PlanCost plan_cost(const ModelPlan& mp, const Backend& backend) {
   const Dims& d = mp.lattice.dims;
   c.bytes_per_system = backend.bytes_per_system(d, mp.steps.precision);
   try {
+    c.layout = state_layout(mp, backend, {});
+    if (c.layout == StateLayout::InPlace) c.bytes_per_system = backend.bytes_per_system_in_place(d, mp.steps.precision);
     c.batch_systems = batch_capacity(mp, backend, {});
   } catch (const Error& e) {
     if (e.category() != ErrorCategory::Unavailable) throw;

@@ -14,6 +14,7 @@ namespace lblight {
 struct PlanCost {
   int batch_systems = 0;            // systems per batch, as bake_model will run them
   std::size_t bytes_per_system = 0;
+  StateLayout layout = StateLayout::TwoLevels;  // as bake will create the solver (state_layout)
   std::size_t device_bytes = 0;     // the lattice plus one batch on the backend's device
   double host_result_bytes = 0;     // every solution's totals (3 channels of float) on the host
   double updates = 0;               // systems x estimated steps x interior nodes

@@ -263,6 +263,17 @@ TEST_CASE("compare: identical bakes pass, a different precision fails at toleran
   CHECK(same.out.find("cloud B05: max relative difference 0\n") != std::string::npos);
   CHECK(same.out.find("largest over 3 grid(s): 0 (within 0)") != std::string::npos);
 
+  // one copy of the state updated in place: the same bits, and validate says which layout runs
+  REQUIRE(run_cli("bake tiny.json -o aa --backend cpu --state in-place -q", tmp.path()).exit_code == 0);
+  const CliResult in_place = run_cli("compare a aa --tolerance 0", tmp.path());
+  INFO(in_place.out << in_place.err);
+  CHECK(in_place.exit_code == 0);
+  CHECK(in_place.out.find("largest over 3 grid(s): 0 (within 0)") != std::string::npos);
+  const CliResult plan = run_cli("validate tiny.json --backend cpu --state in-place", tmp.path());
+  CHECK(plan.out.find("state in-place") != std::string::npos);
+  CHECK(run_cli("validate tiny.json --backend cpu", tmp.path()).out.find("state two-levels") != std::string::npos);
+  CHECK(run_cli("validate tiny.json --state halfway", tmp.path()).exit_code == 2);
+
   // float64 storage rounds differently: a small, nonzero difference
   const CliResult strict = run_cli("compare a f64 --tolerance 0", tmp.path());
   INFO(strict.out);

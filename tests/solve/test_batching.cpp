@@ -15,8 +15,10 @@ namespace {
 // Only what batch planning asks of a backend; creating a solver is not part of it.
 class PlanningBackend final : public Backend {
  public:
-  PlanningBackend(int preferred, std::size_t available, std::size_t per_system = 1000)
-      : preferred_(preferred), available_(available), per_system_(per_system) {}
+  // in_place: bytes per system with the state in place (0: not offered)
+  PlanningBackend(int preferred, std::size_t available, std::size_t per_system = 1000, std::size_t in_place = 0)
+      : preferred_(preferred), available_(available), per_system_(per_system), in_place_(in_place) {}
+  std::size_t bytes_per_system_in_place(const Dims&, Precision) const override { return in_place_; }
   std::string name() const override { return "planning"; }
   std::string description() const override { return "batch planning only"; }
   bool supports(Precision) const override { return true; }
@@ -33,7 +35,7 @@ class PlanningBackend final : public Backend {
 
  private:
   int preferred_;
-  std::size_t available_, per_system_;
+  std::size_t available_, per_system_, in_place_;
 };
 
 struct PlanFixture {
@@ -69,6 +71,32 @@ TEST_CASE("balanced_batch evens batches out without adding any", "[batching]") {
         REQUIRE((total + b - 1) / b == (total + std::min(total, cap) - 1) / std::min(total, cap));
         if (cap % ch == 0 && total % ch == 0) REQUIRE(b % ch == 0);
       }
+}
+
+TEST_CASE("state_layout: two levels while a whole solution fits, in place when only that fits, as asked otherwise",
+          "[batching][in_place]") {
+  PlanFixture f(19, 3);  // 57 systems
+  const BakeOptions opt;
+  // 0.9 x 10000 bytes: 9 systems of 1000 with two levels, 18 of 500 in place
+  CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500), opt) == StateLayout::TwoLevels);
+  CHECK(batch_capacity(f.mp, PlanningBackend(3, 10000, 1000, 500), opt) == 3);
+  // 0.9 x 2500: two systems with two levels, four in place: a whole solution (3 channels) only in place
+  CHECK(state_layout(f.mp, PlanningBackend(3, 2500, 1000, 500), opt) == StateLayout::InPlace);
+  CHECK(batch_capacity(f.mp, PlanningBackend(3, 2500, 1000, 500), opt) == 3);
+  CHECK(batch_capacity(f.mp, PlanningBackend(3, 2500, 1000, 0), opt) == 2);  // not offered: two levels, 2 systems
+  // 0.9 x 800: not one system with two levels; one in place
+  CHECK(batch_capacity(f.mp, PlanningBackend(3, 800, 1000, 500), opt) == 1);
+  CHECK_THROWS_AS(batch_capacity(f.mp, PlanningBackend(3, 800, 1000, 0), opt), Error);
+  // memory unknown: two levels
+  CHECK(state_layout(f.mp, PlanningBackend(3, 0, 1000, 500), opt) == StateLayout::TwoLevels);
+  // as the scene or --state asks
+  f.mp.steps.state = StateLayout::InPlace;
+  CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500), opt) == StateLayout::InPlace);
+  CHECK(batch_capacity(f.mp, PlanningBackend(64, 10000, 1000, 500), opt) == 15);  // 18 fit: 4 batches evened
+  CHECK_THROWS_WITH(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 0), opt),
+                    Catch::Contains("the planning backend keeps two levels"));
+  f.mp.steps.state = StateLayout::TwoLevels;
+  CHECK(state_layout(f.mp, PlanningBackend(3, 2500, 1000, 500), opt) == StateLayout::TwoLevels);
 }
 
 TEST_CASE("batch_capacity: whole solutions, the backend's preference, memory", "[batching]") {
