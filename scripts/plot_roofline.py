@@ -43,7 +43,7 @@ if compute:
 colours = {"float32": "#1f77b4", "float64": "#d62728", "float16": "#2ca02c"}
 for k, (x, y, r) in enumerate(pts):
     c = colours.get(r["precision"], "black")
-    label = ("(c) " if r["state_within_cache"] else "") + f'{r["lattice"][0]}^3 {r["precision"]}, {r["steps_per_pass"]} step{"s" if r["steps_per_pass"] > 1 else ""}/pass'
+    label = ("(c) " if r["state_within_cache"] else "") + f'{r["lattice"][0]}^3 {r["precision"]}, {r["steps_per_pass"]} step{"s" if r["steps_per_pass"] > 1 else ""}/pass' + (", in place" if r.get("state") == "in-place" else "")
     fill = "white" if r["state_within_cache"] else c
     out.append(f'<circle cx="{px(x)}" cy="{py(y)}" r="5" fill="{fill}" stroke="{c}" stroke-width="2"/>')
     out.append(f'<text x="{px(x)+8}" y="{py(y)+4+13*(k%4)-20}" fill="{c}">{label}: {y/1e6:.0f} M</text>')

@@ -32,6 +32,7 @@ struct BenchArgs {
   double bandwidth_mib = 0;
   bool json = false, gas = false;
   std::vector<int> time_blocks;  // empty: 1 and 0 (automatic) on the CPU, 0 elsewhere
+  bool in_place = true;          // also one run with the state in place, where the backend offers it
 };
 
 // The gas solver (CPU, OpenMP) on a periodic size^3 box with a warm blob: node updates per second
@@ -79,8 +80,13 @@ int run_bench(const BenchArgs& a) {
     const Precision precision = parse_precision(pname);
     for (int size : a.sizes) {
       const LatticeGeometry lat = bench_lattice(a.shape, size);
-      for (int block : blocks) {
-        const ThroughputRun run = measure_throughput(*backend, lat, precision, a.systems, a.steps, 0.3, 2.0, block);
+      // the two-level runs, then one in place (no temporal blocking) where offered
+      std::vector<std::pair<int, StateLayout>> variants;
+      for (int block : blocks) variants.push_back({block, StateLayout::TwoLevels});
+      if (a.in_place && backend->bytes_per_system_in_place(lat.dims, precision) > 0) variants.push_back({1, StateLayout::InPlace});
+      for (const auto& [block, layout] : variants) {
+        const ThroughputRun run =
+            measure_throughput(*backend, lat, precision, a.systems, a.steps, 0.3, 2.0, block, layout);
         // What one update moves to and from memory: the whole update's bytes once per pass
         // over the state, i.e. divided by the steps one pass runs (temporal blocking).
         const double nominal = bytes_per_update(precision), moved = nominal / run.steps_per_pass;
@@ -88,6 +94,7 @@ int run_bench(const BenchArgs& a) {
                                {"precision", pname},
                                {"systems", a.systems},
                                {"time_block", block},
+                               {"state", to_string(layout)},
                                {"steps_per_pass", run.steps_per_pass},
                                {"steps", run.steps},
                                {"seconds", run.seconds},
@@ -112,7 +119,7 @@ int run_bench(const BenchArgs& a) {
   bandwidth = std::max(bandwidth, after);
   out["copy_bandwidth_gbs"] = bandwidth / 1e9;
   out["cache_bytes"] = cache;
-  Table table({"lattice", "precision", "systems", "steps/pass", "steps", "seconds", "MLUPS/channel", "B/update moved",
+  Table table({"lattice", "precision", "state", "systems", "steps/pass", "steps", "seconds", "MLUPS/channel", "B/update moved",
                "memory GB/s", "of copy bw", "effective"});
   bool any_cached = false;
   for (auto& run : out["runs"]) {
@@ -133,7 +140,7 @@ int run_bench(const BenchArgs& a) {
     const auto& l = run["lattice"];
     table.add({std::to_string(l[0].get<int>()) + "x" + std::to_string(l[1].get<int>()) + "x" +
                    std::to_string(l[2].get<int>()),
-               run["precision"], std::to_string(run["systems"].get<int>()),
+               run["precision"], run["state"], std::to_string(run["systems"].get<int>()),
                std::to_string(run["steps_per_pass"].get<int>()), std::to_string(run["steps"].get<int>()),
                format_seconds(run["seconds"].get<double>()), mlups, moved, gbs, frac, eff});
   }
@@ -226,6 +233,8 @@ Command add_bench_command(CLI::App& app, const GlobalOptions&) {
                   "CPU steps per pass over the lattice, one run each (1 = one step per pass, 0 = the backend's "
                   "automatic temporal blocking; default on the CPU: 1 and 0 side by side)")
       ->check(CLI::Range(0, 64));
+  cmd->add_flag("!--no-in-place", a->in_place,
+                "Skip the run with the state updated in place (one copy, AA pattern) that the CPU adds by default");
   cmd->add_flag("--json", a->json, "Print JSON");
   cmd->add_flag("--gas", a->gas, "Also time the gas solver (docs/fluid.md) at each --size on the CPU");
   return {cmd, [a] { return run_bench(*a); }};

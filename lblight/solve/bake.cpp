@@ -377,7 +377,8 @@ StateLayout state_layout(const ModelPlan& mp, const Backend& backend, const Bake
   const int fit = systems_that_fit(mp, backend, state_bytes(mp, backend, StateLayout::TwoLevels));
   const int whole = std::min(wanted_systems(mp, backend, opt),
                              std::max(1, std::min(static_cast<int>(mp.channels.size()), static_cast<int>(mp.systems()))));
-  return fit >= 0 && fit < whole ? StateLayout::InPlace : StateLayout::TwoLevels;
+  if (fit >= 0 && fit < whole) return StateLayout::InPlace;
+  return backend.prefers_in_place(mp.lattice.dims, mp.steps.precision) ? StateLayout::InPlace : StateLayout::TwoLevels;
 }
 
 // Krylov solves take one system at a time (their vectors belong to system 0).

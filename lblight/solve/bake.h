@@ -90,9 +90,9 @@ struct BakeOptions {
 // Each system's state in the layout state_layout() picks.
 int batch_capacity(const ModelPlan& model, const Backend& backend, const BakeOptions& options);
 // The state layout bake_model creates its solver with: the plan's (model.steps.state; in place
-// on a backend without it is Error(Unavailable)), else two levels (temporal blocking needs them)
-// unless the device's free memory holds fewer than one whole solution's systems that way and the
-// backend can run them in place.
+// on a backend without it is Error(Unavailable)); else, where the backend offers in place, in
+// place when the device's free memory holds fewer than one whole solution's systems with two
+// levels or when the backend runs the lattice faster so (Backend::prefers_in_place); else two levels.
 StateLayout state_layout(const ModelPlan& model, const Backend& backend, const BakeOptions& options);
 // The smallest batch size that needs no more batches than `capacity` does, a multiple of
 // `channels` when `capacity` is: 57 systems at capacity 18 run as 15+15+15+12.

@@ -72,7 +72,7 @@ struct StepPolicy {
   int check_interval = 16;  // steps between convergence measurements
   double tolerance = 1e-4;
   Precision precision = Precision::Float32;  // the state's storage, as BakePlan::precision
-  std::optional<StateLayout> state;  // as asked; unset: two levels unless only in place fits (state_layout)
+  std::optional<StateLayout> state;  // as asked; unset: the backend's choice within memory (state_layout)
   std::string method_note;  // why the plan chose another method than asked (empty: none)
   double decay_hint = 0;    // rough slowest decay per step (diffusion + absorption), for the
                             // rounding floor before the iteration shows its own (convergence.h)

@@ -59,11 +59,12 @@ double seconds_of(LatticeSolver& solver, int steps, std::vector<Residual>& r) {
 
 ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& lattice, Precision precision,
                                  int systems, int steps, double warmup_seconds, double target_seconds,
-                                 int time_block) {
+                                 int time_block, StateLayout layout) {
   SolverOptions so;
   so.precision = precision;
   so.max_systems = systems;
   so.time_block = time_block;
+  so.layout = layout;
   auto solver = backend.create(lattice, {bench_materials()}, so);
   solver->reset(bench_batch(systems));
   // Warm up (an idle GPU clocks down; caches and pages settle), doubling the steps.
@@ -82,7 +83,8 @@ ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& 
   run.updates_per_second =
       static_cast<double>(lattice.dims.interior_count()) * run.steps * systems / std::max(run.seconds, 1e-9);
   run.steps_per_pass = solver->steps_per_pass();
-  run.state_bytes = 2.0 * 19.0 * static_cast<double>(lattice.dims.count()) * systems * bytes_per_value(precision);
+  run.state_bytes = (layout == StateLayout::InPlace ? 1.0 : 2.0) * 19.0 * static_cast<double>(lattice.dims.count()) *
+                    systems * bytes_per_value(precision);
   return run;
 }
 

@@ -21,7 +21,7 @@ struct ThroughputRun {
   int steps = 0;
   double seconds = 0;
   double updates_per_second = 0;  // per system (one channel of one solution)
-  double state_bytes = 0;         // both time levels of every system: what a step touches at most
+  double state_bytes = 0;         // every system's state (both time levels, or the one in place)
   int steps_per_pass = 1;         // the solver's temporal blocking depth (SolverOptions::time_block)
 };
 
@@ -29,10 +29,10 @@ struct ThroughputRun {
 // after a warm-up of at least `warmup_seconds` (doubling the steps from 2; 0: one 2-step
 // warm-up). steps 0: about `target_seconds` of work. measure() closes each timed span, so an
 // asynchronous backend's queued steps count.
-// time_block: SolverOptions::time_block (0: the backend's choice).
+// time_block: SolverOptions::time_block (0: the backend's choice); layout: SolverOptions::layout.
 ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& lattice, Precision precision,
                                  int systems, int steps, double warmup_seconds = 0.3, double target_seconds = 2.0,
-                                 int time_block = 0);
+                                 int time_block = 0, StateLayout layout = StateLayout::TwoLevels);
 
 // The quick figure behind run-time estimates: one system on an edge^3 uniform lattice (edge 0: 48
 // on the CPU, 128 on a GPU, where a smaller lattice would sit in the L2 cache and time launches

@@ -16,9 +16,12 @@ namespace {
 class PlanningBackend final : public Backend {
  public:
   // in_place: bytes per system with the state in place (0: not offered)
-  PlanningBackend(int preferred, std::size_t available, std::size_t per_system = 1000, std::size_t in_place = 0)
-      : preferred_(preferred), available_(available), per_system_(per_system), in_place_(in_place) {}
+  // faster: prefers_in_place
+  PlanningBackend(int preferred, std::size_t available, std::size_t per_system = 1000, std::size_t in_place = 0,
+                  bool faster = false)
+      : preferred_(preferred), available_(available), per_system_(per_system), in_place_(in_place), faster_(faster) {}
   std::size_t bytes_per_system_in_place(const Dims&, Precision) const override { return in_place_; }
+  bool prefers_in_place(const Dims&, Precision) const override { return faster_; }
   std::string name() const override { return "planning"; }
   std::string description() const override { return "batch planning only"; }
   bool supports(Precision) const override { return true; }
@@ -36,6 +39,7 @@ class PlanningBackend final : public Backend {
  private:
   int preferred_;
   std::size_t available_, per_system_, in_place_;
+  bool faster_;
 };
 
 struct PlanFixture {
@@ -87,8 +91,9 @@ TEST_CASE("state_layout: two levels while a whole solution fits, in place when o
   // 0.9 x 800: not one system with two levels; one in place
   CHECK(batch_capacity(f.mp, PlanningBackend(3, 800, 1000, 500), opt) == 1);
   CHECK_THROWS_AS(batch_capacity(f.mp, PlanningBackend(3, 800, 1000, 0), opt), Error);
-  // memory unknown: two levels
+  // memory unknown: two levels, unless the backend runs the lattice faster in place
   CHECK(state_layout(f.mp, PlanningBackend(3, 0, 1000, 500), opt) == StateLayout::TwoLevels);
+  CHECK(state_layout(f.mp, PlanningBackend(3, 0, 1000, 500, true), opt) == StateLayout::InPlace);
   // as the scene or --state asks
   f.mp.steps.state = StateLayout::InPlace;
   CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500), opt) == StateLayout::InPlace);
