@@ -166,8 +166,6 @@ inline void reals_to_halves(const Real* in, Half* out) {
   for (int i = 0; i < N; ++i) out[i] = static_cast<Half>(in[i]);
 }
 
-// Real: the arithmetic; Store: the state's storage (Real, or _Float16 rounded to nearest even as
-// the GPU's float16 mode stores, arithmetic still in float).
 // How a sweep addresses the state (see the top of this file).
 enum class Access {
   Pull,     // two levels: gather from src, store to the node's own entries in dst
@@ -175,6 +173,8 @@ enum class Access {
   SwapIn,   // in place, odd step: f_m from the node's own slot opposite(m), g_m into its slot m
 };
 
+// Real: the arithmetic; Store: the state's storage (Real, or _Float16 rounded to nearest even as
+// the GPU's float16 mode stores, arithmetic still in float).
 template <typename Real, typename Store = Real>
 class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, public StateAccess, public SlabHalo {
   // One SIMD chunk = one cache line of one direction array.
