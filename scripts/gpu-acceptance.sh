@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Issue 5's measurements on a machine with an NVIDIA GPU, in one go, for docs/performance.md:
 # build with CUDA, the GPU conformance tests (and compute-sanitizer when installed), bench at
-# 64/128/256 in float32 and float16 with the copy bandwidth measured in the same run, and the
-# complete 19 x 3 plant-128 bake timed on the GPU (float32, float16) and on the CPU, with the GPU
-# grids compared to the CPU's. Everything lands in OUTDIR; summary.txt has the headline figures.
+# 64/128/256 in float32 and float16 with the copy bandwidth measured in the same run (two levels
+# and in place), and the complete 19 x 3 plant-128 bake timed on the GPU (float32, float16, in
+# place) and on the CPU, with the GPU grids compared to the CPU's and in place to two levels. Everything lands in OUTDIR; summary.txt has the headline figures.
 # Exit 77 (skipped) when no GPU is usable.
 #   usage: scripts/gpu-acceptance.sh [OUTDIR]     (default: out/gpu-acceptance)
 #   SKIP_CPU_REFERENCE=1 leaves out the CPU bake and the comparison (minutes on few cores).
@@ -78,6 +78,11 @@ for run in 1 2; do
   timed "$out/bake-gpu-f16.log" "$exe" bake configs/plant-128.json --backend cuda --precision float16 \
     -o "$out/plant-128-gpu-f16"
 done
+note "== plant-128 on the GPU with the state in place (one level, AA pattern): the same bits as two levels"
+timed "$out/bake-gpu-in-place.log" "$exe" bake configs/plant-128.json --backend cuda --state in-place \
+  -o "$out/plant-128-gpu-in-place"
+grep -h "tree.vdb:" "$out/bake-gpu-in-place.log" | tail -n 1 >> "$summary"
+"$exe" compare "$out/plant-128-gpu" "$out/plant-128-gpu-in-place" --tolerance 0 | tail -n 1 | tee -a "$summary"
 
 if [ "${SKIP_CPU_REFERENCE:-0}" != 1 ]; then
   note "== plant-128 on the CPU (OpenMP, $(nproc) threads) and the GPU grids against it"

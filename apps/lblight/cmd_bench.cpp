@@ -234,7 +234,7 @@ Command add_bench_command(CLI::App& app, const GlobalOptions&) {
                   "automatic temporal blocking; default on the CPU: 1 and 0 side by side)")
       ->check(CLI::Range(0, 64));
   cmd->add_flag("!--no-in-place", a->in_place,
-                "Skip the run with the state updated in place (one copy, AA pattern) that the CPU adds by default");
+                "Skip the run with the state updated in place (one copy, AA pattern) added by default where the backend offers it");
   cmd->add_flag("--json", a->json, "Print JSON");
   cmd->add_flag("--gas", a->gas, "Also time the gas solver (docs/fluid.md) at each --size on the CPU");
   return {cmd, [a] { return run_bench(*a); }};

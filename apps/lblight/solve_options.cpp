@@ -44,7 +44,7 @@ void SolveOptions::add_plan_options(CLI::App& cmd) {
       ->check(CLI::IsMember({"float32", "float64", "float16"}));
   cmd.add_option("--state", state,
                  "Lattice state in memory: two-levels (two copies, needed for the CPU's temporal blocking), "
-                 "in-place (one copy updated by the AA pattern: half the memory, the same results; cpu backend) "
+                 "in-place (one copy updated by the AA pattern: half the memory, the same results; cpu and cuda backends) "
                  "or auto (in place where only that fits or where the backend runs it faster; default: the scene's)")
       ->check(CLI::IsMember({"auto", "two-levels", "in-place"}));
 }

@@ -54,13 +54,13 @@ struct DeviceTables {
 };
 
 // One thread per interior node and run of systems, as step_launch() lays them out (lb_device.h).
-template <typename T, bool OneRow>
+template <typename T, bool OneRow, Access A>
 __global__ void step_kernel(BatchArgs<T> a, int per_group) {
   int x, y, z, s_begin, s_end;
   if (!step_thread_node<OneRow>(a.d, per_group, a.systems, blockIdx.x, blockIdx.y, blockIdx.z, blockDim.x,
                                 blockDim.y, threadIdx.x, threadIdx.y, x, y, z, s_begin, s_end))
     return;
-  step_node(a, DeviceTables{}, x, y, z, s_begin, s_end);
+  step_node<A>(a, DeviceTables{}, x, y, z, s_begin, s_end);
 }
 
 // The boundary-fed entries of the nodes inflow_launch() gives each thread (lb_device.h).
@@ -262,14 +262,14 @@ const void*& bound_tables_owner(int device) {
 }
 
 // Launches step_kernel over the interior (one step of every system in a).
-template <typename T>
+template <typename T, Access A>
 void launch_step(const BatchArgs<T>& a) {
   const StepLaunch l = step_launch(a.d, a.systems);
   if (l.gz == 0) return;
   const dim3 grid(static_cast<unsigned>(l.gx), static_cast<unsigned>(l.gy), static_cast<unsigned>(l.gz));
   const dim3 block(static_cast<unsigned>(l.bx), static_cast<unsigned>(l.by));
-  if (l.by == 1) step_kernel<T, true><<<grid, block>>>(a, l.per_group);
-  else step_kernel<T, false><<<grid, block>>>(a, l.per_group);
+  if (l.by == 1) step_kernel<T, true, A><<<grid, block>>>(a, l.per_group);
+  else step_kernel<T, false, A><<<grid, block>>>(a, l.per_group);
   GPU_CHECK(gpuGetLastError());
 }
 
@@ -312,7 +312,11 @@ class CudaDevice {
 
   template <typename T>
   void step(const BatchArgs<T>& a) const {
-    launch_step(a);
+    switch (a.access) {
+      case Access::Push: launch_step<T, Access::Push>(a); break;
+      case Access::SwapOut: launch_step<T, Access::SwapOut>(a); break;
+      case Access::SwapIn: launch_step<T, Access::SwapIn>(a); break;
+    }
   }
   template <typename T>
   void inflow(const BatchArgs<T>& a, T* level, bool zero) const {
@@ -386,6 +390,9 @@ class CudaBackend final : public Backend {
   bool supports(Precision p) const override { return p != Precision::Float64; }
   bool occupies_host_cores() const override { return false; }
   std::size_t bytes_per_system(const Dims& d, Precision p) const override { return gpu_bytes_per_system(d, p); }
+  std::size_t bytes_per_system_in_place(const Dims& d, Precision p) const override {
+    return gpu_bytes_per_system(d, p, StateLayout::InPlace);
+  }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override {
     std::size_t free_bytes = 0, total = 0;
@@ -409,9 +416,11 @@ class CudaBackend final : public Backend {
     const int capacity = options.max_systems > 0 ? options.max_systems : 1;
     switch (options.precision) {
       case Precision::Float32:
-        return std::make_unique<GpuSolver<float, CudaDevice>>(CudaDevice(device_), g, channels, capacity, "cuda");
+        return std::make_unique<GpuSolver<float, CudaDevice>>(CudaDevice(device_), g, channels, capacity,
+                                                              options.layout, "cuda");
       case Precision::Float16:
-        return std::make_unique<GpuSolver<gpu_half, CudaDevice>>(CudaDevice(device_), g, channels, capacity, "cuda");
+        return std::make_unique<GpuSolver<gpu_half, CudaDevice>>(CudaDevice(device_), g, channels, capacity,
+                                                                 options.layout, "cuda");
       default:
         throw Error(ErrorCategory::Unavailable, "the cuda backend stores float32 or float16, not float64");
     }

@@ -12,7 +12,7 @@
 //   void zero(void* dst, std::size_t bytes) const;
 //   void bind(const void* owner, long long generation, const BatchTables&);  // per-batch tables
 //   void unbind(const void* owner);
-//   template <typename T> void step(const BatchArgs<T>&) const;                // step_node, every thread
+//   template <typename T> void step(const BatchArgs<T>&) const;  // step_node<a.access>, every thread
 //   template <typename T> void inflow(const BatchArgs<T>&, T* level, bool zero) const;
 //   void init_totals(float* totals, const Dims&, int systems) const;
 //   template <typename T> void measure(const BatchArgs<T>&, double* partial, double* reduced,
@@ -44,10 +44,12 @@ inline int reduce_blocks(const Dims& d) {
   return static_cast<int>((static_cast<long long>(d.interior_count()) + kReduceBlock - 1) / kReduceBlock);
 }
 
-// Device memory one system needs: two levels of state, its totals and its share of the reductions.
-inline std::size_t gpu_bytes_per_system(const Dims& d, Precision p) {
+// Device memory one system needs: its levels of state (two, or one in place), its totals and its
+// share of the reductions.
+inline std::size_t gpu_bytes_per_system(const Dims& d, Precision p, StateLayout layout = StateLayout::TwoLevels) {
   const std::size_t v = p == Precision::Float16 ? 2 : 4;
-  return 2 * 19 * static_cast<std::size_t>(gpu_stride(d)) * v + d.count() * sizeof(float) +
+  const std::size_t levels = layout == StateLayout::InPlace ? 1 : 2;
+  return levels * 19 * static_cast<std::size_t>(gpu_stride(d)) * v + d.count() * sizeof(float) +
          (static_cast<std::size_t>(reduce_blocks(d)) + 1) * kReduceSlots * sizeof(double);
 }
 
@@ -55,8 +57,8 @@ template <typename T, typename Device>
 class GpuSolver final : public LatticeSolver, public KrylovVectors, public StateAccess {
  public:
   GpuSolver(Device device, const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity,
-            const char* backend)
-      : dev_(std::move(device)), d_(g.dims), capacity_(capacity) {
+            StateLayout layout, const char* backend)
+      : dev_(std::move(device)), d_(g.dims), capacity_(capacity), in_place_(layout == StateLayout::InPlace) {
     check_geometry(g, backend);  // the step kernel picks its operator by the material byte
     if (d_.ny - 2 > 65535 || d_.nz - 2 > 65535) throw_invalid("lattice too large for the GPU launch grid");
     if (static_cast<int>(channels.size()) > kMaxChannels || g.material_count > kMaxMaterials)
@@ -79,7 +81,7 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
     material_.allocate(count_);
     dev_.upload(density_.get(), g.density.data(), count_ * sizeof(float));
     dev_.upload(material_.get(), g.material.data(), count_);
-    state_.allocate(static_cast<std::size_t>(capacity_) * 2 * 19 * static_cast<std::size_t>(stride_));
+    state_.allocate(static_cast<std::size_t>(capacity_) * levels() * 19 * static_cast<std::size_t>(stride_));
     totals_.allocate(static_cast<std::size_t>(capacity_) * count_);
     partial_.allocate(static_cast<std::size_t>(reduce_blocks(d_)) * capacity_ * kReduceSlots);
     reduced_.allocate(static_cast<std::size_t>(capacity_) * kReduceSlots);
@@ -102,9 +104,13 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
     ++batch_generation_;  // new tables for bind()
     bind();
     level_ = 0;
+    swapped_ = false;
     dev_.zero(state_.get(), state_.bytes());
     dev_.init_totals(totals_.get(), d_, static_cast<int>(batch_.size()));
-    inflow(level_ptr(0, 1), false);  // what the boundary pushes arrives with the first step
+    // What the boundary pushes arrives with the first step: into the other level, or in place into
+    // the swapped layout's slots now and the natural layout's (which the first step reads as 0) after it.
+    if (in_place_) inflow(with_access(args(), Access::SwapIn), level_ptr(0, 0), false);
+    else inflow(args(), level_ptr(0, 1), false);
     inflow_pending_ = true;
   }
 
@@ -112,9 +118,11 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
     bind();
     for (int t = 0; t < steps; ++t) {
       dev_.step(args());
-      level_ = 1 - level_;
+      if (in_place_) swapped_ = !swapped_;
+      else level_ = 1 - level_;
       if (inflow_pending_) {
-        inflow(level_ptr(0, 1 - level_), false);
+        if (in_place_) inflow(with_access(args(), Access::Push), level_ptr(0, 0), false);
+        else inflow(args(), level_ptr(0, 1 - level_), false);
         inflow_pending_ = false;
       }
     }
@@ -148,8 +156,8 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
   void read_state(int system, std::vector<double>& f) const override {
     dev_.use();
     check_system(system);
-    std::vector<T> raw(19 * static_cast<std::size_t>(stride_));
-    dev_.download(raw.data(), level_ptr(system, level_), raw.size() * sizeof(T));
+    std::vector<T> raw;
+    download_natural(system, raw);
     const SystemSpec& spec = batch_.at(static_cast<std::size_t>(system));
     f.assign(19 * count_, 0.0);
     for (int z = 0; z < d_.nz; ++z)
@@ -167,6 +175,7 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
     dev_.use();
     check_system(system);
     if (f.size() != 19 * count_) throw std::invalid_argument("write_state: wrong state size");
+    make_natural();  // the other systems of the batch keep the layout of this one
     std::vector<T> raw(19 * static_cast<std::size_t>(stride_), Storage<T>::store(0.0f));
     // Interior nodes only. Boundary nodes' slots are never read by a step, but a Krylov solve
     // copies the state into its vectors, and the slots no step writes must stay 0 there (else
@@ -179,10 +188,7 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
             raw[m * static_cast<std::size_t>(stride_) + i] = Storage<T>::store(static_cast<float>(f[m * count_ + i]));
         }
     dev_.upload(level_ptr(system, level_), raw.data(), raw.size() * sizeof(T));
-    bind();
-    inflow(level_ptr(0, 0), false);
-    inflow(level_ptr(0, 1), false);
-    inflow_pending_ = false;
+    refill_inflow();
   }
 
   // Krylov vectors, push form: a vector is a full state (f values) of system 0, boundary-fed
@@ -202,29 +208,24 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
     dot_partial_.allocate(kVectorBlocks + 1);
   }
   void vector_from_state(int v) override {
-    dev_.use();
+    make_natural();
     dev_.copy(vec(v), level_ptr(0, level_), vector_bytes());
+    clear_outflow(v);
   }
   void vector_to_state(int v) override {
-    bind();
+    make_natural();
     dev_.copy(level_ptr(0, level_), vec(v), vector_bytes());
-    inflow(level_ptr(0, 0), false);
-    inflow(level_ptr(0, 1), false);
-    inflow_pending_ = false;
+    refill_inflow();
   }
   void vector_step_offset(int v) override {
     bind();
     dev_.zero(vec(v), vector_bytes());
-    inflow(vec(v), false, 1);
+    inflow(vector_args(v, v), vec(v), false);
   }
   void vector_apply(int x, int y) override {
     bind();
-    BatchArgs<T> a = args();
-    a.systems = 1;
-    a.cur = vec(x);
-    a.next = vec(y);
-    dev_.step(a);
-    inflow(vec(y), true, 1);
+    dev_.step(vector_args(x, y));
+    inflow(vector_args(x, y), vec(y), true);
   }
   void vector_axpby(double a, int x, double b, int y) override {
     dev_.use();
@@ -239,30 +240,94 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
   template <typename U>
   using Buffer = typename Device::template Buffer<U>;
 
+  std::size_t levels() const { return in_place_ ? 1 : 2; }
+
   T* level_ptr(int system, int level) const {
-    return state_.get() + static_cast<std::size_t>(system) * 2 * 19 * static_cast<std::size_t>(stride_) +
+    return state_.get() + static_cast<std::size_t>(system) * levels() * 19 * static_cast<std::size_t>(stride_) +
            static_cast<std::size_t>(level) * 19 * static_cast<std::size_t>(stride_);
   }
 
+  // The batch's state: cur the level a step reads; in place next == cur and access alternates.
   BatchArgs<T> args() const {
     BatchArgs<T> a;
     a.d = d_;
     a.stride = stride_;
-    a.system_stride = 2 * 19 * stride_;
+    a.system_stride = static_cast<long long>(levels()) * 19 * stride_;
     a.systems = static_cast<int>(batch_.size());
     a.density = density_.get();
     a.material = material_.get();
     a.cur = level_ptr(0, level_);
-    a.next = level_ptr(0, 1 - level_);
+    a.next = in_place_ ? a.cur : level_ptr(0, 1 - level_);
     a.totals = totals_.get();
+    a.access = !in_place_ ? Access::Push : (swapped_ ? Access::SwapIn : Access::SwapOut);
     return a;
   }
 
-  // Boundary-fed entries of `level` (system 0's layout) for `systems` systems (-1: the batch).
-  void inflow(T* level, bool zero, int systems = -1) {
-    BatchArgs<T> a = args();
-    if (systems >= 0) a.systems = systems;
-    dev_.inflow(a, level, zero);
+  static BatchArgs<T> with_access(BatchArgs<T> a, Access access) {
+    a.access = access;
+    return a;
+  }
+
+  // A Krylov product y = A x between vectors: system 0's channel, two levels, whatever the state.
+  BatchArgs<T> vector_args(int x, int y) const {
+    BatchArgs<T> a = with_access(args(), Access::Push);
+    a.systems = 1;
+    a.cur = vec(x);
+    a.next = vec(y);
+    return a;
+  }
+
+  // Boundary-fed entries of `level` (laid out as a.cur) for a's systems, where a's access reads them.
+  void inflow(const BatchArgs<T>& a, T* level, bool zero) { dev_.inflow(a, level, zero); }
+
+  // Zeroes vector v's boundary-node slots that pushes write (light leaving the lattice), which the
+  // swapped layout uses for its inflow: so a vector taken from the state is the same whatever the
+  // state's layout. (A x fills them again, with what leaves: extra entries of the vectors that
+  // converge with the rest, as they always have on the GPU.)
+  void clear_outflow(int v) {
+    bind();
+    inflow(with_access(vector_args(v, v), Access::SwapIn), vec(v), true);
+  }
+
+  // After the state was written from the host or a vector: the inflow of every level (in place,
+  // of both layouts) again.
+  void refill_inflow() {
+    bind();
+    inflow(with_access(args(), Access::Push), level_ptr(0, 0), false);
+    inflow(in_place_ ? with_access(args(), Access::SwapIn) : args(), level_ptr(0, in_place_ ? 0 : 1), false);
+    inflow_pending_ = false;
+  }
+
+  // System `system`'s current level, in the natural layout (direction m of node i at
+  // m * stride + i) at the interior nodes.
+  void download_natural(int system, std::vector<T>& raw) const {
+    const std::size_t n = 19 * static_cast<std::size_t>(stride_);
+    raw.resize(n);
+    dev_.download(raw.data(), level_ptr(system, level_), n * sizeof(T));
+    if (!swapped_) return;
+    std::vector<T> swapped(raw);
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x) {
+          const long long i = static_cast<long long>(d_.index(x, y, z));
+          for (int m = 0; m < 19; ++m)
+            raw[static_cast<std::size_t>(m * stride_ + i)] =
+                swapped[static_cast<std::size_t>(i + read_offset<Access::SwapIn>(d_, stride_, m))];
+        }
+  }
+
+  // Returns a swapped in-place state to the natural layout (through the host: only what a step
+  // does not do needs it, a Krylov solve's start and end and writes from the host).
+  void make_natural() {
+    dev_.use();
+    if (!swapped_) return;
+    std::vector<T> raw;
+    for (int s = 0; s < static_cast<int>(batch_.size()); ++s) {
+      download_natural(s, raw);
+      dev_.upload(level_ptr(s, level_), raw.data(), raw.size() * sizeof(T));
+    }
+    swapped_ = false;
+    refill_inflow();  // the swapped layout's inflow slots at boundary nodes
   }
 
   // A system of the current batch: anything else would address device memory past the state.
@@ -294,7 +359,9 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
   Buffer<double> partial_, reduced_, dot_partial_;
   std::vector<std::unique_ptr<Buffer<T>>> vectors_;
   std::vector<SystemSpec> batch_;
-  int level_ = 0;
+  int level_ = 0;             // two levels: the one steps read
+  bool in_place_ = false;     // one level, AA pattern (Access::SwapOut / SwapIn)
+  bool swapped_ = false;      // in place: an odd number of steps since the natural layout
   bool inflow_pending_ = false;
   long long batch_generation_ = 0;
 };

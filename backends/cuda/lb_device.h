@@ -27,9 +27,26 @@ struct Storage<float> {
   LBL_HOSTDEV static float store(float v) { return v; }
 };
 
+// How a step addresses the state.
+//   Push: two levels. Node i reads its own values f_m(i) in cur and pushes value m to node i + c_m
+//   in next.
+//   In place (StateLayout::InPlace, docs/model.md sec. 3.1): the AA pattern on one level
+//   (cur == next), two kinds of step taking turns:
+//   SwapOut: node i reads its own slots (the natural layout) and stores value m into its own slot
+//            opposite(m). The state is then swapped: f_m(i) sits in slot opposite(m) of i - c_m.
+//   SwapIn:  node i reads f_m from slot opposite(m) of i - c_m and stores value m into slot m of
+//            i + c_m: the natural layout again.
+// Either way a step's threads read and write the same entries, each entry one thread's, so no two
+// race. In place, values leaving the lattice are dropped rather than stored: the slots they would
+// land in hold the boundary's inflow (interior slots for the natural layout, boundary-node slots
+// for the swapped one), which no step writes, so inflow_node fills each once.
+enum class Access : int { Push, SwapOut, SwapIn };
+
 // Everything a thread needs about the batch, passed by value to every kernel. Direction m of
-// node i of system s sits at cur[s * system_stride + m * stride + i] (the current state) and
-// next[...] (where a step writes); a Krylov solve points cur and next at its vectors.
+// node i of system s sits at cur[s * system_stride + m * stride + i] (the current state, in the
+// natural layout) and next[...] (where a step writes); a Krylov solve points cur and next at its
+// vectors. In place cur == next, and `access` says how the next step runs (SwapIn: the state is
+// swapped), which measure_node follows too.
 template <typename T>
 struct BatchArgs {
   Dims d;
@@ -41,7 +58,26 @@ struct BatchArgs {
   T* cur = nullptr;
   T* next = nullptr;
   float* totals = nullptr;      // systems x node count, as of the last measure
+  Access access = Access::Push;
 };
+
+// Offset of node i + c_m from node i in a direction array.
+LBL_HOSTDEV LBL_FORCEINLINE long long neighbour_shift(const Dims& d, int m) {
+  return d3q19::cx(m) + d3q19::cy(m) * static_cast<long long>(d.nx) +
+         d3q19::cz(m) * static_cast<long long>(d.nx) * d.ny;
+}
+
+// Where value f_m of a node sits relative to that node's slot 0, as a step of access A reads it.
+template <Access A>
+LBL_HOSTDEV LBL_FORCEINLINE long long read_offset(const Dims& d, long long stride, int m) {
+  if (A == Access::SwapIn) return d3q19::opposite(m) * stride - neighbour_shift(d, m);
+  return m * stride;
+}
+
+// Interior node (x, y, z) touches the boundary layer (some c_m leads into it).
+LBL_HOSTDEV LBL_FORCEINLINE bool next_to_boundary(const Dims& d, int x, int y, int z) {
+  return x == 1 || y == 1 || z == 1 || x == d.nx - 2 || y == d.ny - 2 || z == d.nz - 2;
+}
 
 // Per-batch tables behind one small interface that step_node, inflow_node and measure_node take:
 //   int channel(int s); unsigned absorb_bits(int c); float boundary(int s, int m);
@@ -60,24 +96,33 @@ struct BatchTables {
   const CollisionOp<float>& op(int c, int k) const { return ops[c][k]; }
 };
 
-// One LB step for interior node (x, y, z) of systems [s_begin, s_end) of the batch.
-template <typename T, typename Tables>
+// One LB step for interior node (x, y, z) of systems [s_begin, s_end) of the batch, addressed
+// as A says (a.access names the same; the launch picks the instance).
+template <Access A, typename T, typename Tables>
 LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& tb, int x, int y, int z, int s_begin,
                                            int s_end) {
   const std::size_t i = a.d.index(x, y, z);
   const float rho = a.density[i];
   const unsigned k = a.material[i];
-  const long long sy = a.d.nx, sz = static_cast<long long>(a.d.nx) * a.d.ny;
+  const bool edge = A != Access::Push && next_to_boundary(a.d, x, y, z);
   for (int s = s_begin; s < s_end; ++s) {
     const int c = tb.channel(s);
     const T* src = a.cur + s * a.system_stride + i;
     T* dst = a.next + s * a.system_stride + i;
     float f[d3q19::kQ];
     LBL_UNROLL
-    for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
+    for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[read_offset<A>(a.d, a.stride, m)]);
     const float keep = f0_keep<float>(tb.absorb_bits(c), k);
     const auto push = [&](int m, float v) {
-      dst[m * a.stride + d3q19::cx(m) + d3q19::cy(m) * sy + d3q19::cz(m) * sz] = Storage<T>::store(v);
+      if (A == Access::SwapOut) {
+        if (!edge || !fed_by_boundary(a.d, x, y, z, d3q19::opposite(m)))  // else it leaves the lattice
+          dst[d3q19::opposite(m) * a.stride] = Storage<T>::store(v);
+      } else if (A == Access::SwapIn) {
+        if (!edge || !fed_by_boundary(a.d, x, y, z, d3q19::opposite(m)))
+          dst[m * a.stride + neighbour_shift(a.d, m)] = Storage<T>::store(v);
+      } else {
+        dst[m * a.stride + neighbour_shift(a.d, m)] = Storage<T>::store(v);
+      }
     };
     // The operator picked with literal indices: its ~180 coefficients are then read at fixed
     // addresses (on the GPU, constant-bank operands of the FMAs) instead of through a per-thread
@@ -98,7 +143,9 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
 }
 
 // Writes the boundary-fed entries of interior node (x, y, z) into `level` (the state layout of
-// every system): the systems' boundary values, or 0 for a Krylov vector.
+// every system) where a step of a.access reads them: the systems' boundary values, or 0 for a
+// Krylov vector. Push and SwapOut read slot m of the node, SwapIn slot opposite(m) of the
+// boundary node i - c_m; in place each layout has its own, written once.
 template <typename T, typename Tables>
 LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables& tb, T* level, bool zero, int x,
                                              int y, int z) {
@@ -106,7 +153,11 @@ LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables
   for (int s = 0; s < a.systems; ++s) {
     T* f = level + s * a.system_stride + i;
     for (int m = 1; m < d3q19::kQ; ++m)
-      if (fed_by_boundary(a.d, x, y, z, m)) f[m * a.stride] = Storage<T>::store(zero ? 0.0f : tb.boundary(s, m));
+      if (fed_by_boundary(a.d, x, y, z, m)) {
+        const long long at = a.access == Access::SwapIn ? read_offset<Access::SwapIn>(a.d, a.stride, m)
+                                                        : read_offset<Access::Push>(a.d, a.stride, m);
+        f[at] = Storage<T>::store(zero ? 0.0f : tb.boundary(s, m));
+      }
   }
 }
 
@@ -119,7 +170,9 @@ LBL_HOSTDEV LBL_FORCEINLINE NodeResidual measure_node(const BatchArgs<T>& a, con
   const T* src = a.cur + s * a.system_stride + i;
   float f[d3q19::kQ];
   LBL_UNROLL
-  for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[m * a.stride]);
+  for (int m = 0; m < d3q19::kQ; ++m)
+    f[m] = Storage<T>::load(src[a.access == Access::SwapIn ? read_offset<Access::SwapIn>(a.d, a.stride, m)
+                                                           : read_offset<Access::Push>(a.d, a.stride, m)]);
   float* total = a.totals + static_cast<std::size_t>(s) * a.d.count() + i;
   const int c = tb.channel(s);
   const unsigned k = a.material[i];

@@ -23,7 +23,39 @@ namespace {
 
 std::array<double, 19> base(int j) { return base_boundary(j); }
 
+// A backend creating every solver with one level of state, updated in place.
+class InPlace final : public Backend {
+ public:
+  explicit InPlace(std::shared_ptr<Backend> inner) : inner_(std::move(inner)) {}
+  std::string name() const override { return inner_->name(); }
+  std::string description() const override { return inner_->description() + ", in place"; }
+  bool supports(Precision p) const override { return inner_->supports(p); }
+  bool occupies_host_cores() const override { return inner_->occupies_host_cores(); }
+  std::size_t bytes_per_system(const Dims& d, Precision p) const override {
+    return inner_->bytes_per_system_in_place(d, p);
+  }
+  std::size_t bytes_per_lattice(const Dims& d) const override { return inner_->bytes_per_lattice(d); }
+  std::size_t available_bytes() const override { return inner_->available_bytes(); }
+  int preferred_batch(const Dims& d, Precision p, int total) const override {
+    return inner_->preferred_batch(d, p, total);
+  }
+  std::unique_ptr<LatticeSolver> create(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels,
+                                        const SolverOptions& options) const override {
+    SolverOptions o = options;
+    o.layout = StateLayout::InPlace;
+    return inner_->create(g, channels, o);
+  }
+  double measure_copy_bandwidth(std::size_t bytes) const override { return inner_->measure_copy_bandwidth(bytes); }
+
+ private:
+  std::shared_ptr<Backend> inner_;
+};
+
 }  // namespace
+
+std::shared_ptr<Backend> lblight::test::in_place(std::shared_ptr<Backend> inner) {
+  return std::make_shared<InPlace>(std::move(inner));
+}
 
 TEST_CASE("Every backend matches the literal reference update (mixed materials, absorption)", "[conformance]") {
   // 19 wide: rows shorter and longer than a CPU SIMD chunk, the GPU's several-row blocks; 257

@@ -18,4 +18,7 @@ struct BoundBackend {
 
 std::vector<BoundBackend> conformance_backends();
 
+// `inner` creating every solver with one level of state, updated in place (StateLayout::InPlace).
+std::shared_ptr<Backend> in_place(std::shared_ptr<Backend> inner);
+
 }  // namespace lblight::test

@@ -66,9 +66,17 @@ class EmulatedDevice {
   void unbind(const void*) {}
 
   template <typename T>
-  void step(const BatchArgs<T>& a) const {  // step_kernel
+  void step(const BatchArgs<T>& a) const {  // launch_step and step_kernel
+    switch (a.access) {
+      case gpu::Access::Push: step_as<gpu::Access::Push>(a); break;
+      case gpu::Access::SwapOut: step_as<gpu::Access::SwapOut>(a); break;
+      case gpu::Access::SwapIn: step_as<gpu::Access::SwapIn>(a); break;
+    }
+  }
+  template <gpu::Access A, typename T>
+  void step_as(const BatchArgs<T>& a) const {
     for_each_step_thread(a.d, a.systems, fill_,
-                         [&](int x, int y, int z, int s0, int s1) { gpu::step_node(a, *tables_, x, y, z, s0, s1); });
+                         [&](int x, int y, int z, int s0, int s1) { gpu::step_node<A>(a, *tables_, x, y, z, s0, s1); });
   }
   template <typename T>
   void inflow(const BatchArgs<T>& a, T* level, bool zero) const {  // inflow_kernel
@@ -130,6 +138,9 @@ class EmulatedGpuBackend final : public Backend {
   }
   bool occupies_host_cores() const override { return false; }  // as the CUDA backend: output on its own thread
   std::size_t bytes_per_system(const Dims& d, Precision p) const override { return gpu::gpu_bytes_per_system(d, p); }
+  std::size_t bytes_per_system_in_place(const Dims& d, Precision p) const override {
+    return gpu::gpu_bytes_per_system(d, p, StateLayout::InPlace);
+  }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return 0; }  // unknown: no memory limit applied
   int preferred_batch(const Dims& d, Precision, int total) const override { return gpu::systems_to_fill(d, total); }
@@ -139,11 +150,11 @@ class EmulatedGpuBackend final : public Backend {
     switch (o.precision) {
       case Precision::Float32:
         return std::make_unique<gpu::GpuSolver<float, EmulatedDevice>>(EmulatedDevice(fill_), g, channels, capacity,
-                                                                        "emulated-gpu");
+                                                                        o.layout, "emulated-gpu");
 #if LBL_TEST_HAVE_FLOAT16
       case Precision::Float16:
         return std::make_unique<gpu::GpuSolver<_Float16, EmulatedDevice>>(EmulatedDevice(fill_), g, channels, capacity,
-                                                                           "emulated-gpu");
+                                                                           o.layout, "emulated-gpu");
 #endif
       default:
         throw Error(ErrorCategory::Unavailable, std::string("the emulated GPU does not store ") + to_string(o.precision));
