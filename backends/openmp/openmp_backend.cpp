@@ -911,8 +911,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // run_row for the in-place steps: g is the one level, read and written by the same nodes.
-  // No shifted last chunk (a node computed twice would read its own output): the remainder is a
-  // shorter chunk. 16-bit storage converts whole chunks as run_row does, the remainder by value.
+  // No shifted last chunk (a node computed twice would read its own output after its store).
   template <Access A, typename Node>
   LBL_FORCEINLINE void run_row_in_place(Store* g, int y, int z, Node&& node) const {
     const int nx = d_.nx;
@@ -925,39 +924,32 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     auto to = [&](int m, int x) LBL_INLINE_LAMBDA {
       return A == Access::SwapOut ? d3q19::opposite(m) * stride + row + x + shift(m) : m * stride + row + x;
     };
+    auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+      LBL_UNROLL
+      for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[from(m, x)]);
+    };
     if constexpr (kCanStream) {
-      auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
-        LBL_UNROLL
-        for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[from(m, x)]);
-      };
 #pragma omp simd
       for (int x = 1; x < nx - 1; ++x)
         node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[to(m, x)] = static_cast<Store>(v); });
-    } else {
-      alignas(64) Real stage[kQ][kLine];
-      alignas(64) Real post[kQ][kLine];
-      for (int x0 = 1; x0 <= nx - 2; x0 += kLine) {
-        const int count = std::min(kLine, nx - 1 - x0);
-        if (count == kLine)
-          for (int m = 0; m < kQ; ++m) halves_to_reals<kLine>(g + from(m, x0), stage[m]);
-        else
-          for (int m = 0; m < kQ; ++m)
-            for (int l = 0; l < count; ++l) stage[m][l] = static_cast<Real>(g[from(m, x0 + l)]);
-#pragma omp simd
-        for (int l = 0; l < count; ++l)
-          node(
-              x0 + l,
-              [&](int, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
-                LBL_UNROLL
-                for (int m = 0; m < kQ; ++m) f[m] = stage[m][l];
-              },
-              [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
-        if (count == kLine)
-          for (int m = 0; m < kQ; ++m) reals_to_halves<kLine>(post[m], g + to(m, x0));
-        else
-          for (int m = 0; m < kQ; ++m)
-            for (int l = 0; l < count; ++l) g[to(m, x0 + l)] = static_cast<Store>(post[m][l]);
-      }
+    } else {  // whole chunks converted 16 values per instruction; the remainder by value, its nodes
+              // still a whole chunk's SIMD arithmetic (the extra lanes repeat node nx - 2, unstored)
+      int x = 1;
+      for (; x + kLine - 1 <= nx - 2; x += kLine)
+        staged_chunk(
+            x, nx - 2, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(g + from(m, x), stage); },
+            [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, g + to(m, x)); }, node);
+      const int count = nx - 1 - x;
+      if (count > 0)
+        staged_chunk(
+            x, nx - 2,
+            [&](int m, Real* stage) LBL_INLINE_LAMBDA {
+              for (int l = 0; l < kLine; ++l) stage[l] = l < count ? static_cast<Real>(g[from(m, x + l)]) : Real(0);
+            },
+            [&](int m, const Real* post) LBL_INLINE_LAMBDA {
+              for (int l = 0; l < count; ++l) g[to(m, x + l)] = static_cast<Store>(post[l]);
+            },
+            node);
     }
   }
 
@@ -1008,27 +1000,34 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
   }
 
-  // 16-bit storage: the chunk's 19 source segments are converted to the arithmetic type first,
-  // the nodes run on them, and their results are converted back, 16 values per instruction
-  // (halves_to_reals). at: the state index of the chunk's first node, x0 its x.
-  template <typename Node>
-  LBL_FORCEINLINE void converted_chunk(const Store* __restrict src, Store* __restrict out, long long at, int x0,
-                                       Node&& node) const {
+  // 16-bit storage: the kLine nodes from x0 (none past `last`: lanes beyond it repeat node last)
+  // run on arithmetic-type copies, filled direction by direction by in(m, stage) and handed back
+  // by out(m, post), so the conversions go 16 values per instruction (halves_to_reals).
+  template <typename In, typename Out, typename Node>
+  LBL_FORCEINLINE void staged_chunk(int x0, int last, In&& in, Out&& out, Node&& node) const {
     alignas(64) Real stage[kQ][kLine];
     alignas(64) Real post[kQ][kLine];
-    const long long stride = static_cast<long long>(stride_), pitch = pitch_, plane = plane_;
-    for (int m = 0; m < kQ; ++m)
-      halves_to_reals<kLine>(src + m * stride + at - d3q19::cx(m) - d3q19::cy(m) * pitch - d3q19::cz(m) * plane, stage[m]);
+    for (int m = 0; m < kQ; ++m) in(m, stage[m]);
 #pragma omp simd
     for (int l = 0; l < kLine; ++l)
       node(
-          x0 + l,
+          std::min(x0 + l, last),
           [&](int, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
             LBL_UNROLL
             for (int m = 0; m < kQ; ++m) f[m] = stage[m][l];
           },
           [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
-    for (int m = 0; m < kQ; ++m) reals_to_halves<kLine>(post[m], out + m * stride);
+    for (int m = 0; m < kQ; ++m) out(m, post[m]);
+  }
+
+  // The two-level pull's chunk through staged_chunk: at is the state index of node x0.
+  template <typename Node>
+  LBL_FORCEINLINE void converted_chunk(const Store* __restrict src, Store* __restrict out, long long at, int x0,
+                                       Node&& node) const {
+    const long long stride = static_cast<long long>(stride_);
+    staged_chunk(
+        x0, x0 + kLine - 1, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(src + at - shift(m) + m * stride, stage); },
+        [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, out + m * stride); }, node);
   }
 
   // Gathers f for node x of the row whose state starts at `row` (in the source level).
