@@ -8,13 +8,14 @@
 
 namespace lblight::cli {
 
-void ProgressLog::model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) {
+void ProgressLog::model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes,
+                                StateLayout layout) {
   if (per_model_) {
     total_ = mp.solutions.size();
     done_ = 0;
   }
   const Dims& d = mp.lattice.dims;
-  const bool in_place = state_layout(mp, backend, {}) == StateLayout::InPlace;
+  const bool in_place = layout == StateLayout::InPlace;
   spdlog::info("model '{}': {}x{}x{} lattice, {} solution(s) x {} distinct channel(s) on {} ({} for the lattice{})",
                mp.spec->name, d.nx, d.ny, d.nz, mp.solutions.size(), mp.channels.size(), backend.name(),
                format_bytes(static_cast<double>(bytes)), in_place ? ", state updated in place" : "");

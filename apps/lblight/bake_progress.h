@@ -16,7 +16,7 @@ class ProgressLog final : public BakeObserver {
   // frames of a gas sequence, planned one at a time).
   explicit ProgressLog(std::size_t total) : total_(total), per_model_(total == 0) {}
 
-  void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) override;
+  void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes, StateLayout layout) override;
   void progress(const BakeProgress& ev) override;
   void solution_done(const ModelPlan& mp, SolutionResult& r) override;
 

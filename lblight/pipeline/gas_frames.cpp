@@ -18,8 +18,8 @@ namespace {
 class FrameRecord final : public BakeObserver {
  public:
   explicit FrameRecord(BakeObserver& next) : next_(next) {}
-  void model_started(const ModelPlan& mp, const Backend& b, std::size_t bytes) override {
-    next_.model_started(mp, b, bytes);
+  void model_started(const ModelPlan& mp, const Backend& b, std::size_t bytes, StateLayout layout) override {
+    next_.model_started(mp, b, bytes, layout);
   }
   void memory_in_use(const ModelPlan& mp, std::size_t bytes) override { next_.memory_in_use(mp, bytes); }
   void progress(const BakeProgress& p) override { next_.progress(p); }

@@ -9,8 +9,9 @@ namespace lblight {
 
 WriteEachSolution::WriteEachSolution(BakeOutput& out, BakeObserver& next) : out_(out), next_(next) {}
 
-void WriteEachSolution::model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) {
-  next_.model_started(mp, backend, bytes);
+void WriteEachSolution::model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes,
+                                      StateLayout layout) {
+  next_.model_started(mp, backend, bytes, layout);
   out_.set_peak_bytes(mp, bytes);
 }
 

@@ -21,7 +21,7 @@ class BakeOutput;
 class WriteEachSolution final : public BakeObserver {
  public:
   WriteEachSolution(BakeOutput& out, BakeObserver& next);
-  void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes) override;
+  void model_started(const ModelPlan& mp, const Backend& backend, std::size_t bytes, StateLayout layout) override;
   void memory_in_use(const ModelPlan& mp, std::size_t bytes) override;
   void progress(const BakeProgress& p) override { next_.progress(p); }
   void solution_done(const ModelPlan& mp, SolutionResult& r) override;

@@ -573,7 +573,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     for (const ChannelMaterials& ch : mp.channels)
       corrections.push_back(std::make_unique<DiffusionCorrection>(mp.lattice, ch, dsa_settings));
   }
-  observer.model_started(mp, backend, solver->bytes_in_use());
+  observer.model_started(mp, backend, solver->bytes_in_use(), so.layout);
 
   const std::vector<SystemRef> queue = system_queue(mp);
   StateAccess* warm_state =

@@ -45,8 +45,8 @@ class BakeObserver {
  public:
   virtual ~BakeObserver() = default;
   // bytes: what the solver holds on its device once created (the lattice; a backend may
-  // allocate its systems' state only when a batch starts).
-  virtual void model_started(const ModelPlan&, const Backend&, std::size_t /*bytes*/) {}
+  // allocate its systems' state only when a batch starts); layout: how it keeps the state.
+  virtual void model_started(const ModelPlan&, const Backend&, std::size_t /*bytes*/, StateLayout /*layout*/) {}
   // After each batch: the solver's device memory then (state, totals, Krylov vectors included).
   // Solvers never give memory back while a model solves, so the last report is the peak.
   virtual void memory_in_use(const ModelPlan&, std::size_t /*bytes*/) {}
