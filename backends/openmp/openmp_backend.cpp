@@ -924,11 +924,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     auto to = [&](int m, int x) LBL_INLINE_LAMBDA {
       return A == Access::SwapOut ? d3q19::opposite(m) * stride + row + x + shift(m) : m * stride + row + x;
     };
-    auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
-      LBL_UNROLL
-      for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[from(m, x)]);
-    };
     if constexpr (kCanStream) {
+      auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+        LBL_UNROLL
+        for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[from(m, x)]);
+      };
 #pragma omp simd
       for (int x = 1; x < nx - 1; ++x)
         node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[to(m, x)] = static_cast<Store>(v); });
