@@ -317,7 +317,8 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
   }
 
   // Returns a swapped in-place state to the natural layout (through the host: only what a step
-  // does not do needs it, a Krylov solve's start and end and writes from the host).
+  // does not do needs it, a Krylov solve's start and end and writes from the host). The inflow
+  // stays in place: the natural layout's comes from the swapped one's, which the upload keeps.
   void make_natural() {
     dev_.use();
     if (!swapped_) return;
@@ -327,7 +328,6 @@ class GpuSolver final : public LatticeSolver, public KrylovVectors, public State
       dev_.upload(level_ptr(s, level_), raw.data(), raw.size() * sizeof(T));
     }
     swapped_ = false;
-    refill_inflow();  // the swapped layout's inflow slots at boundary nodes
   }
 
   // A system of the current batch: anything else would address device memory past the state.

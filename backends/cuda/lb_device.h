@@ -73,6 +73,12 @@ LBL_HOSTDEV LBL_FORCEINLINE long long read_offset(const Dims& d, long long strid
   if (A == Access::SwapIn) return d3q19::opposite(m) * stride - neighbour_shift(d, m);
   return m * stride;
 }
+// The same for the access a's next step runs (a runtime choice, for inflow and measure).
+template <typename T>
+LBL_HOSTDEV LBL_FORCEINLINE long long read_offset(const BatchArgs<T>& a, int m) {
+  return a.access == Access::SwapIn ? read_offset<Access::SwapIn>(a.d, a.stride, m)
+                                    : read_offset<Access::Push>(a.d, a.stride, m);
+}
 
 // Interior node (x, y, z) touches the boundary layer (some c_m leads into it).
 LBL_HOSTDEV LBL_FORCEINLINE bool next_to_boundary(const Dims& d, int x, int y, int z) {
@@ -114,15 +120,9 @@ LBL_HOSTDEV LBL_FORCEINLINE void step_node(const BatchArgs<T>& a, const Tables& 
     for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[read_offset<A>(a.d, a.stride, m)]);
     const float keep = f0_keep<float>(tb.absorb_bits(c), k);
     const auto push = [&](int m, float v) {
-      if (A == Access::SwapOut) {
-        if (!edge || !fed_by_boundary(a.d, x, y, z, d3q19::opposite(m)))  // else it leaves the lattice
-          dst[d3q19::opposite(m) * a.stride] = Storage<T>::store(v);
-      } else if (A == Access::SwapIn) {
-        if (!edge || !fed_by_boundary(a.d, x, y, z, d3q19::opposite(m)))
-          dst[m * a.stride + neighbour_shift(a.d, m)] = Storage<T>::store(v);
-      } else {
-        dst[m * a.stride + neighbour_shift(a.d, m)] = Storage<T>::store(v);
-      }
+      if (edge && fed_by_boundary(a.d, x, y, z, d3q19::opposite(m))) return;  // in place: it leaves the lattice
+      dst[A == Access::SwapOut ? d3q19::opposite(m) * a.stride : m * a.stride + neighbour_shift(a.d, m)] =
+          Storage<T>::store(v);
     };
     // The operator picked with literal indices: its ~180 coefficients are then read at fixed
     // addresses (on the GPU, constant-bank operands of the FMAs) instead of through a per-thread
@@ -154,9 +154,7 @@ LBL_HOSTDEV LBL_FORCEINLINE void inflow_node(const BatchArgs<T>& a, const Tables
     T* f = level + s * a.system_stride + i;
     for (int m = 1; m < d3q19::kQ; ++m)
       if (fed_by_boundary(a.d, x, y, z, m)) {
-        const long long at = a.access == Access::SwapIn ? read_offset<Access::SwapIn>(a.d, a.stride, m)
-                                                        : read_offset<Access::Push>(a.d, a.stride, m);
-        f[at] = Storage<T>::store(zero ? 0.0f : tb.boundary(s, m));
+        f[read_offset(a, m)] = Storage<T>::store(zero ? 0.0f : tb.boundary(s, m));
       }
   }
 }
@@ -170,9 +168,7 @@ LBL_HOSTDEV LBL_FORCEINLINE NodeResidual measure_node(const BatchArgs<T>& a, con
   const T* src = a.cur + s * a.system_stride + i;
   float f[d3q19::kQ];
   LBL_UNROLL
-  for (int m = 0; m < d3q19::kQ; ++m)
-    f[m] = Storage<T>::load(src[a.access == Access::SwapIn ? read_offset<Access::SwapIn>(a.d, a.stride, m)
-                                                           : read_offset<Access::Push>(a.d, a.stride, m)]);
+  for (int m = 0; m < d3q19::kQ; ++m) f[m] = Storage<T>::load(src[read_offset(a, m)]);
   float* total = a.totals + static_cast<std::size_t>(s) * a.d.count() + i;
   const int c = tb.channel(s);
   const unsigned k = a.material[i];

@@ -1026,7 +1026,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
                                        Node&& node) const {
     const long long stride = static_cast<long long>(stride_);
     staged_chunk(
-        x0, x0 + kLine - 1, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(src + at - shift(m) + m * stride, stage); },
+        x0, x0 + kLine - 1,
+        [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(src + at - shift(m) + m * stride, stage); },
         [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, out + m * stride); }, node);
   }
 
