@@ -35,15 +35,43 @@ double mean_sigma_t(const Material& m) {
 
 double voxel_edge(const ModelGrid& g) { return frame_voxel_edge(g.frame()); }
 
-// World box of an instance's grid (voxel centres grown by half a voxel), in cell indices.
+// The cells an instance's voxels deposit into (the two cells around each voxel centre per axis),
+// in cell indices.
 void instance_cells(const ForestModel& fm, const InstanceTransform& t, double cell, std::array<std::int64_t, 3>& lo,
                     std::array<std::int64_t, 3>& hi) {
   Vec3d mn, mx;
   instance_world_bounds(fm.grid->frame(), t, 0.5, mn, mx);
   const double a[3] = {mn.x, mn.y, mn.z}, b[3] = {mx.x, mx.y, mx.z};
   for (int k = 0; k < 3; ++k) {
-    lo[k] = static_cast<std::int64_t>(std::floor(a[k] / cell + 0.5));
-    hi[k] = static_cast<std::int64_t>(std::floor(b[k] / cell + 0.5));
+    lo[k] = static_cast<std::int64_t>(std::floor(a[k] / cell));
+    hi[k] = static_cast<std::int64_t>(std::floor(b[k] / cell)) + 1;
+  }
+}
+
+// Adds `value` at world point p to the 8 cells around it, weighted trilinearly (cloud in cell):
+// cell (i, j, k) is centred at cell * (i, j, k), lo is the grid's first cell. Nearest-cell
+// deposit made the coarse light depend on where an instance sits within a cell (the grids of an
+// instance and of its model alone differ by that offset), which left the factors' largest error
+// (docs/forest.md sec. 2).
+void deposit_trilinear(std::vector<double>& depth, const Dims& dims, const std::array<std::int64_t, 3>& lo, double cell,
+                       const Vec3d& p, double value) {
+  const double u[3] = {p.x / cell, p.y / cell, p.z / cell};
+  std::int64_t base[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    base[a] = static_cast<std::int64_t>(std::floor(u[a]));
+    f[a] = u[a] - static_cast<double>(base[a]);
+  }
+  const std::int64_t extent[3] = {dims.nx, dims.ny, dims.nz};
+  for (int corner = 0; corner < 8; ++corner) {
+    double w = value;
+    int c[3];
+    for (int a = 0; a < 3; ++a) {
+      const int bit = (corner >> a) & 1;
+      w *= bit ? f[a] : 1.0 - f[a];
+      c[a] = static_cast<int>(std::clamp<std::int64_t>(base[a] + bit - lo[a], 0, extent[a] - 1));
+    }
+    if (w != 0.0) depth[dims.index(c[0], c[1], c[2])] += w;
   }
 }
 
@@ -85,14 +113,7 @@ CoarseGrid deposit(const std::vector<ForestModel>& models, const std::vector<For
           const float rho = g.density[n];
           if (!(rho > 0.0f)) continue;
           const int kind = g.material[n] == kMaterialWood ? 1 : 0;
-          const Vec3d p = t.to_world(frame_to_world(frame, i, j, k));
-          const std::int64_t c[3] = {static_cast<std::int64_t>(std::floor(p.x / cell + 0.5)) - lo[0],
-                                     static_cast<std::int64_t>(std::floor(p.y / cell + 0.5)) - lo[1],
-                                     static_cast<std::int64_t>(std::floor(p.z / cell + 0.5)) - lo[2]};
-          const std::size_t q = dims.index(static_cast<int>(std::clamp<std::int64_t>(c[0], 0, dims.nx - 1)),
-                                           static_cast<int>(std::clamp<std::int64_t>(c[1], 0, dims.ny - 1)),
-                                           static_cast<int>(std::clamp<std::int64_t>(c[2], 0, dims.nz - 1)));
-          depth[q] += rho * st[kind] * w;
+          deposit_trilinear(depth, dims, lo, cell, t.to_world(frame_to_world(frame, i, j, k)), rho * st[kind] * w);
           sums.add(*mats[kind], rho * w);
         }
   }

@@ -125,10 +125,12 @@ TEST_CASE("forest relight: a lone instance equals its model's static bake, its c
   const CliResult coarse = run_cli(std::string("relight bake -o coarse.vdb ") + kSun, tmp.path());
   REQUIRE(coarse.exit_code == 0);
   const auto record = nlohmann::json::parse(read_text(tmp / "coarse.json"));
-  for (int c = 0; c < 3; ++c) CHECK(record["instances"][0][3][c].get<double>() == Approx(1.0).margin(0.03));
+  // Within 1% (measured 1.005; nearest-cell deposit, which left an instance's coarse grid and its
+  // model's alone grid differently aliased, gave 0.989).
+  for (int c = 0; c < 3; ++c) CHECK(record["instances"][0][3][c].get<double>() == Approx(1.0).margin(0.01));
   const Difference dc = against_static(tmp / "coarse.vdb", tmp / "static" / "m.vdb");
   INFO("lone instance with coarse factors: L2 " << dc.l2 << ", max " << dc.max);
-  CHECK(dc.l2 < 0.03);
+  CHECK(dc.l2 < 0.02);  // measured 0.012
 }
 
 TEST_CASE("forest relight: a quarter-turned instance equals the static bake of the turned model, other yaws are "

@@ -43,31 +43,39 @@ TEST_CASE("coarse cells keep the optical depth of a homogeneous block", "[forest
   const ModelSpec spec = leaf_model("block");
   const double sigma_t = spec.material.channel[1].sigma_t();  // leaf: 1 per voxel in every channel
   for (const auto& [voxels_per_cell, scale] : {std::pair{2, 1.0}, std::pair{4, 1.0}, std::pair{4, 2.0}}) {
-    // 8^3 voxels of edge 0.25 (x scale in the world); the block starts on a cell boundary.
+    // 16^3 voxels of edge 0.25 (x scale in the world); the block starts on a cell boundary.
+    const int n = 16;
     const double h = 0.25, cell = voxels_per_cell * h * scale;
-    const ModelGrid g = block(8, h, 0.2f, {0.5 * h, 0.5 * h, 0.5 * h});
-    // Voxel centres at h (i + 1/2) x scale: with the instance at the origin every cell of
-    // `cell` holds whole voxels (cell centres at cell (i, j, k), edges at cell (i + 1/2)).
+    const ModelGrid g = block(n, h, 0.1f, {0.5 * h, 0.5 * h, 0.5 * h});
+    // Voxel centres at h (i + 1/2) x scale - cell / 2: cell centres at cell (i, j, k). Each voxel
+    // spreads over the two cells around its centre per axis, so the block's outer cells are
+    // partly filled and its inner ones (cells 1 .. n / voxels_per_cell - 2 per axis) wholly.
     const ForestInstance in{"block", {-0.5 * cell, -0.5 * cell, -0.5 * cell}, 0, scale};
     const CoarseForest c = build_coarse_forest({{&spec, &g}}, {in}, cell, {});
     INFO("voxels per cell " << voxels_per_cell << ", scale " << scale);
-    const int cells = 8 / voxels_per_cell;
-    REQUIRE(c.forest.grid.dims.nx >= cells);
-    // Fine optical depth through the block along z: 8 voxels x rho sigma_t, whatever the scale
+    const int cells = n / voxels_per_cell;
+    const Dims& d = c.forest.grid.dims;
+    REQUIRE(d.nx == cells + 2);  // the inner cells and one partly filled cell either side
+    // Fine optical depth through the block along z: n voxels x rho sigma_t, whatever the scale
     // (a scaled instance is the same lattice, larger in the world).
-    const double fine = 8 * 0.2 * sigma_t;
-    int columns = 0;
-    for (int y = 0; y < c.forest.grid.dims.ny; ++y)
-      for (int x = 0; x < c.forest.grid.dims.nx; ++x) {
-        const double d = column_depth(c.forest, x, y);
-        if (d == 0) continue;
-        ++columns;
-        CHECK(d == Approx(fine).epsilon(1e-6));
+    const double fine = n * 0.1 * sigma_t;
+    double sum = 0;
+    int inner = 0;
+    for (int y = 0; y < d.ny; ++y)
+      for (int x = 0; x < d.nx; ++x) {
+        const double depth = column_depth(c.forest, x, y);
+        sum += depth;
+        if (x < 2 || y < 2 || x >= d.nx - 2 || y >= d.ny - 2) continue;
+        ++inner;
+        CHECK(depth == Approx(fine).epsilon(1e-6));
       }
-    CHECK(columns == cells * cells);
+    CHECK(inner == (cells - 2) * (cells - 2));
+    // All of the block's extinction is in the grid: its columns hold `cells^2` columns' depth.
+    CHECK(sum == Approx(fine * cells * cells).epsilon(1e-6));
     CHECK(c.forest.clamped_cells == 0);
-    CHECK(c.forest.max_optical_depth == Approx(0.2 * sigma_t * voxels_per_cell).epsilon(1e-6));
-    // The alone grid (the model at the origin, scale 1: other cell boundaries) holds the same
+    CHECK(c.forest.max_optical_depth == Approx(0.1 * sigma_t * voxels_per_cell).epsilon(1e-6));
+    // The alone grid (the model at the origin, scale 1: other cell boundaries, up to 8 voxels per
+    // cell, still below the clamp at density 0.1) holds the same
     // optical depth summed over its cells, over scale^2 (the scaled block covers scale^2 as many
     // columns).
     REQUIRE(c.alone.size() == 1);
@@ -78,12 +86,41 @@ TEST_CASE("coarse cells keep the optical depth of a homogeneous block", "[forest
   }
 }
 
+TEST_CASE("an instance's coarse depth moves with it by fractions of a cell", "[forest]") {
+  // A block shifted by part of a cell moves its coarse depth's centroid by exactly that part
+  // (each voxel is shared between the cells around its centre), so the coarse light of an
+  // instance and of its model alone differ by no more than the offset between them.
+  const ModelSpec spec = leaf_model("block");
+  const ModelGrid g = block(3, 0.25, 0.2f, {0.125, 0.125, 0.125});  // voxel centres 0.125 .. 0.625
+  for (double shift : {0.0, 0.1, 0.25, 0.4, 0.7}) {
+    const CoarseForest c = build_coarse_forest({{&spec, &g}}, {{"block", {shift, 0, 0}, 0, 1}}, 1.0, {});
+    const Dims& d = c.forest.grid.dims;
+    double sum = 0, moment = 0;
+    for (int z = 0; z < d.nz; ++z)
+      for (int y = 0; y < d.ny; ++y)
+        for (int x = 0; x < d.nx; ++x) {
+          const double v = c.forest.grid.density[d.index(x, y, z)];
+          sum += v;
+          moment += v * (x + c.forest.grid.index_min[0]);  // cell x sits at world x (cell size 1)
+        }
+    INFO("shift " << shift);
+    CHECK(moment / sum == Approx(0.375 + shift).epsilon(1e-6));  // densities are floats
+  }
+}
+
 TEST_CASE("coarse cells deeper than the stability margin are clamped and counted", "[forest]") {
   const ModelSpec spec = leaf_model("solid");
-  const ModelGrid g = block(8, 0.25, 1.0f, {0.125, 0.125, 0.125});
+  // 16^3 voxels of edge 0.25, density 1, in cells of 1: per axis the cells around the block hold
+  // 0.5, 3.5, 4, 4, 3.5 and 0.5 voxels' worth, each voxel rho sigma_t (0.25 / 1)^2 = 1/16.
+  const ModelGrid g = block(16, 0.25, 1.0f, {0.125, 0.125, 0.125});
   const CoarseForest c = build_coarse_forest({{&spec, &g}}, {{"solid", {-0.5, -0.5, -0.5}, 0, 1}}, 1.0, {});
-  CHECK(c.forest.max_optical_depth == Approx(4.0));  // 4 voxels of depth 1 across each cell
-  CHECK(c.forest.clamped_cells == 8);
+  CHECK(c.forest.max_optical_depth == Approx(4.0));  // 4 x 4 x 4 voxels of 1/16 in the inner cells
+  const double per_axis[6] = {0.5, 3.5, 4, 4, 3.5, 0.5};
+  int deep = 0;
+  for (double a : per_axis)
+    for (double b : per_axis)
+      for (double e : per_axis) deep += a * b * e / 16 > kMaxCoarseOpticalDepth ? 1 : 0;
+  CHECK(c.forest.clamped_cells == deep);
   double rho_sigma = 0;
   for (float d : c.forest.grid.density) rho_sigma = std::max(rho_sigma, d * c.forest.medium.channel[0].sigma_t());
   CHECK(rho_sigma == Approx(kMaxCoarseOpticalDepth));
