@@ -928,13 +928,12 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     auto to = [&](int m, int x) LBL_INLINE_LAMBDA {
       return A == Access::SwapOut ? d3q19::opposite(m) * stride + row + x + shift(m) : m * stride + row + x;
     };
-    // the lines of both kinds kPrefetchChunks chunks ahead of x (past the row's end: harmless)
+    // the lines kPrefetchChunks chunks ahead of x, for reading and writing: a node's 19 stores go
+    // to the 19 entries it reads (to(m, x) is from(opposite(m), x)). Past the row's end the
+    // addresses stay inside the state's allocation.
     auto prefetch = [&](int x) LBL_INLINE_LAMBDA {
       LBL_UNROLL
-      for (int m = 0; m < kQ; ++m) {
-        __builtin_prefetch(g + from(m, x + kPrefetchChunks * kLine), 1, 3);
-        __builtin_prefetch(g + to(m, x + kPrefetchChunks * kLine), 1, 3);
-      }
+      for (int m = 0; m < kQ; ++m) __builtin_prefetch(g + from(m, x + kPrefetchChunks * kLine), 1, 3);
     };
     if constexpr (kCanStream) {
       auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
@@ -993,7 +992,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     for (; x0 + kLine - 1 <= nx - 2; x0 += kLine) {
       Store* __restrict out = dst + srow + x0;
       LBL_UNROLL
-      for (int m = 0; m < kQ; ++m) {  // past the row's end: harmless
+      for (int m = 0; m < kQ; ++m) {  // past the row's end: still inside the state's allocation
         __builtin_prefetch(src + srow + x0 + kPrefetchChunks * kLine - shift(m) + m * stride, 0, 3);
         if constexpr (!(kStream && kCanStream)) __builtin_prefetch(out + kPrefetchChunks * kLine + m * stride, 1, 3);
       }

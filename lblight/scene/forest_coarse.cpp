@@ -61,6 +61,10 @@ void deposit_trilinear(std::vector<double>& depth, const Dims& dims, const std::
   for (int a = 0; a < 3; ++a) {
     base[a] = static_cast<std::int64_t>(std::floor(u[a]));
     f[a] = u[a] - static_cast<double>(base[a]);
+    // a centre on a cell centre up to rounding: all of it there, no 1e-16 share in a cell that
+    // would otherwise stay empty (and grow the cropped lattice, or reach the ground's layer)
+    if (f[a] < 1e-9) f[a] = 0.0;
+    if (f[a] > 1.0 - 1e-9) f[a] = 0.0, ++base[a];
   }
   const std::int64_t extent[3] = {dims.nx, dims.ny, dims.nz};
   for (int corner = 0; corner < 8; ++corner) {

@@ -337,11 +337,13 @@ void add_coarse_plan(BakePlan& plan, const Scene& scene, const PlanOverrides& ov
   mp.spec = spec.get();
   mp.role = role;
   mp.alone_model = alone_model;
-  // The forest's ground is the highest layer of cells wholly below the ground's height; a model
-  // alone stands directly on its ground, as its instances stand on the forest's.
+  // The forest's ground is the highest layer of cells that no medium above the ground's height
+  // reaches: a voxel centre at z deposits into cells floor(z / cell) and the one above
+  // (forest_coarse.cpp), so the layer under floor(height / cell). A model alone stands directly on
+  // its ground, as its instances stand on the forest's.
   std::optional<long long> ground_index;
   if (role == PlanRole::ForestCoarse)
-    ground_index = static_cast<long long>(std::floor(scene.ground.height / cell - 0.5 + 1e-9));
+    ground_index = static_cast<long long>(std::floor(scene.ground.height / cell + 1e-9)) - 1;
   bool on_ground = true;
   for (const ModelSpec& m : scene.models)
     if (role == PlanRole::ForestAlone && m.name == alone_model) on_ground = m.ground;

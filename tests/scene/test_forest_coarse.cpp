@@ -110,16 +110,20 @@ TEST_CASE("an instance's coarse depth moves with it by fractions of a cell", "[f
 
 TEST_CASE("coarse cells deeper than the stability margin are clamped and counted", "[forest]") {
   const ModelSpec spec = leaf_model("solid");
-  // 16^3 voxels of edge 0.25, density 1, in cells of 1: per axis the cells around the block hold
-  // 0.5, 3.5, 4, 4, 3.5 and 0.5 voxels' worth, each voxel rho sigma_t (0.25 / 1)^2 = 1/16.
-  const ModelGrid g = block(16, 0.25, 1.0f, {0.125, 0.125, 0.125});
+  // 16^3 voxels of edge 0.25, density 0.3, in cells of 1: per axis the cells around the block hold
+  // 0.5, 3.5, 4, 4, 3.5 and 0.5 voxels' worth, each voxel rho sigma_t (0.25 / 1)^2 = 0.3 / 16.
+  // The inner 8 cells (1.2) and the 24 next to them on one axis (1.05) are too deep; nearest-cell
+  // deposit would give 64 cells of 1.2.
+  const double rho = 0.3;
+  const ModelGrid g = block(16, 0.25, static_cast<float>(rho), {0.125, 0.125, 0.125});
   const CoarseForest c = build_coarse_forest({{&spec, &g}}, {{"solid", {-0.5, -0.5, -0.5}, 0, 1}}, 1.0, {});
-  CHECK(c.forest.max_optical_depth == Approx(4.0));  // 4 x 4 x 4 voxels of 1/16 in the inner cells
+  CHECK(c.forest.max_optical_depth == Approx(64 * rho / 16));  // 4 x 4 x 4 voxels in the inner cells
   const double per_axis[6] = {0.5, 3.5, 4, 4, 3.5, 0.5};
   int deep = 0;
   for (double a : per_axis)
     for (double b : per_axis)
-      for (double e : per_axis) deep += a * b * e / 16 > kMaxCoarseOpticalDepth ? 1 : 0;
+      for (double e : per_axis) deep += a * b * e * rho / 16 > kMaxCoarseOpticalDepth ? 1 : 0;
+  CHECK(deep == 32);
   CHECK(c.forest.clamped_cells == deep);
   double rho_sigma = 0;
   for (float d : c.forest.grid.density) rho_sigma = std::max(rho_sigma, d * c.forest.medium.channel[0].sigma_t());
