@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "lblight/core/system_info.h"
+#include "lblight/lattice/trilinear.h"
 
 namespace lblight {
 namespace {
@@ -55,28 +56,15 @@ void instance_cells(const ForestModel& fm, const InstanceTransform& t, double ce
 // (docs/forest.md sec. 2).
 void deposit_trilinear(std::vector<double>& depth, const Dims& dims, const std::array<std::int64_t, 3>& lo, double cell,
                        const Vec3d& p, double value) {
-  const double u[3] = {p.x / cell, p.y / cell, p.z / cell};
-  std::int64_t base[3];
-  double f[3];
-  for (int a = 0; a < 3; ++a) {
-    base[a] = static_cast<std::int64_t>(std::floor(u[a]));
-    f[a] = u[a] - static_cast<double>(base[a]);
-    // a centre on a cell centre up to rounding: all of it there, no 1e-16 share in a cell that
-    // would otherwise stay empty (and grow the cropped lattice, or reach the ground's layer)
-    if (f[a] < 1e-9) f[a] = 0.0;
-    if (f[a] > 1.0 - 1e-9) f[a] = 0.0, ++base[a];
-  }
-  const std::int64_t extent[3] = {dims.nx, dims.ny, dims.nz};
-  for (int corner = 0; corner < 8; ++corner) {
-    double w = value;
-    int c[3];
-    for (int a = 0; a < 3; ++a) {
-      const int bit = (corner >> a) & 1;
-      w *= bit ? f[a] : 1.0 - f[a];
-      c[a] = static_cast<int>(std::clamp<std::int64_t>(base[a] + bit - lo[a], 0, extent[a] - 1));
-    }
-    if (w != 0.0) depth[dims.index(c[0], c[1], c[2])] += w;
-  }
+  std::array<double, 3> u{p.x / cell - static_cast<double>(lo[0]), p.y / cell - static_cast<double>(lo[1]),
+                          p.z / cell - static_cast<double>(lo[2])};
+  // a centre on a cell centre up to rounding: all of it there, no 1e-16 share in a cell that
+  // would otherwise stay empty (and grow the cropped lattice, or reach the ground's layer)
+  for (double& v : u)
+    if (std::abs(v - std::round(v)) < 1e-9) v = std::round(v);
+  const Trilinear t(dims, u);
+  for (int c = 0; c < 8; ++c)
+    if (t.weight[c] != 0.0) depth[t.index[c]] += value * t.weight[c];
 }
 
 // Deposits the instances into one coarse grid (the forest, or one model alone).
