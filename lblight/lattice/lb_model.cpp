@@ -1,10 +1,14 @@
 #include "lblight/lattice/lb_model.h"
 
+#include "lblight/lattice/decay_constant.h"
 #include "lblight/lattice/diffusion_limit.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <mutex>
+#include <tuple>
 
 namespace lblight {
 
@@ -12,16 +16,24 @@ using namespace d3q19;
 
 std::string LbModel::name() const {
   if (!calibrated) return "paper";
-  std::string off;
-  LbModel copy = *this;
-  for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k)
-    if (!*calibration_switch(copy, k)) off += std::string(off.empty() ? "" : ", ") + kCalibrationNames[k];
-  return off.empty() ? "calibrated" : "calibrated (no " + off + ")";
+  // The corrections that differ from the defaults: "no" those switched off, "with" those on.
+  std::string off, on;
+  LbModel copy = *this, defaults;
+  for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k) {
+    const bool is = *calibration_switch(copy, k);
+    if (is == *calibration_switch(defaults, k)) continue;
+    std::string& list = is ? on : off;
+    list += std::string(list.empty() ? "" : ", ") + kCalibrationNames[k];
+  }
+  std::string differs = off.empty() ? "" : "no " + off;
+  if (!on.empty()) differs += (differs.empty() ? "with " : "; with ") + on;
+  return differs.empty() ? "calibrated" : "calibrated (" + differs + ")";
 }
 
 bool* calibration_switch(LbModel& m, int k) {
   bool* s[] = {&m.path_length,     &m.phase_moment,  &m.delta_m,      &m.isotropic_ambient,
-               &m.remove_absorbed, &m.voxel_average, &m.diffusion_match};
+               &m.remove_absorbed, &m.voxel_average, &m.diffusion_match, &m.path_absorption,
+               &m.decay_match};
   return s[k];
 }
 
@@ -54,9 +66,12 @@ OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const L
   const double albedo = sigma_t > 0 ? sigma_s / sigma_t : 0.0;
   // What direction k loses per step at density 1: over its path length |c_k| (path_length) or
   // sigma_t as in the papers.
+  // Of that, absorbed[k] is absorbed (the albedo's complement, or over the whole path).
+  std::array<double, kQ> absorbed{};
   for (int k = 1; k < kQ; ++k) {
     const double len = model.path_length ? std::sqrt(static_cast<double>(length_sq(k))) : 1.0;
     removed[k] = model.path_length ? -std::expm1(-sigma_t * len) : sigma_t;
+    absorbed[k] = model.path_length && model.path_absorption ? -std::expm1(-sigma_a * len) : removed[k] * (1.0 - albedo);
   }
   // The matched g depends on j's class only (axial or diagonal; the lattice's symmetry): two
   // bisections, not eighteen (this runs inside diffusion_match's own bisection).
@@ -66,7 +81,7 @@ OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const L
   OmegaMatrix om{};
   om[0] = -1.0;
   for (int j = 1; j < kQ; ++j) {
-    om[j] = model.remove_absorbed ? 0.0 : removed[j] * (1.0 - albedo);
+    om[j] = model.remove_absorbed ? 0.0 : absorbed[j];
     const double gj = is_axial(j) ? g_axial : g_diagonal;
     double z = 0;  // Z_j of [Geist2010] eq. (8)
     for (int k = 1; k < kQ; ++k) z += weight(k) * hg_phase(gj, k, j);
@@ -75,7 +90,7 @@ OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const L
       // the light it does not absorb (column sums 0 for a lossless medium). Weighting the
       // scattered light by the receiving direction's step length instead (the transport equation
       // per unit length) measured worse against the reference (docs/accuracy.md).
-      const double scatter = albedo * removed[j] * ((weight(i) * hg_phase(gj, i, j)) / z);
+      const double scatter = (removed[j] - absorbed[j]) * ((weight(i) * hg_phase(gj, i, j)) / z);
       om[i * kQ + j] = (i == j ? -removed[j] : 0.0) + scatter;
     }
   }
@@ -99,8 +114,9 @@ double lattice_diffusion(const OmegaMatrix& om, const std::array<double, kQ>& re
   return d;
 }
 
-OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
-  if (!model.calibrated) return build_omega(p);
+namespace {
+
+OmegaMatrix build_calibrated_omega(const OpticalParams& p, const LbModel& model) {
   // Delta-M: for a forward peak, the fraction f = g^2 of scattering is taken as no scattering at
   // all, leaving sigma_s (1 - f) with asymmetry (g - f) / (1 - f); sigma_s (1 - g) is kept.
   double sigma_s = p.sigma_s, g = p.g;
@@ -110,17 +126,62 @@ OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
     g = (g - f) / (1.0 - f);
   }
   std::array<double, kQ> removed{};
-  if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0) return assemble(p.sigma_a, sigma_s, g, model, removed);
-  // diffusion_match: the phase function's mean cosine that gives multiply scattered light the
-  // physical diffusion coefficient 1 / (3 (sigma_a + sigma_s (1 - g))); the lattice's own
-  // coefficient rises with the mean cosine (bisection, clamped to [-0.95, 0.95]).
-  const double target = 1.0 / (3.0 * (p.sigma_a + sigma_s * (1.0 - g)));
-  double lo = -0.95, hi = 0.95;
-  for (int it = 0; it < 60; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (lattice_diffusion(assemble(p.sigma_a, sigma_s, mid, model, removed), removed) < target ? lo : hi) = mid;
+  // decay_match refines diffusion_match and needs absorbed light to leave (else nothing decays).
+  const bool decay = model.decay_match && model.remove_absorbed && p.sigma_a > 0;
+  if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0)
+    return assemble(p.sigma_a, sigma_s, g, model, removed);
+  auto omega_at = [&](double mean_cosine) { return assemble(p.sigma_a, sigma_s, mean_cosine, model, removed); };
+  // Bisection on [lo, hi], where the lattice's value falls as the mean cosine rises, for the mean
+  // cosine whose value meets the target (clamped to the interval).
+  auto match = [&](auto&& lattice_value, double target, double lo, double hi) {
+    for (int it = 0; it < 50; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (lattice_value(omega_at(mid)) > target ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+  };
+  // decay_match: light deep inside fades at exact transport's rate (of the medium as given, not
+  // delta-M scaled: the reference scatters by HG itself). The lattice's kappa falls with the mean
+  // cosine only above a peak (a very backward lattice phase function fades more slowly again);
+  // kappa is matched on that branch, and where exact transport fades faster than that peak
+  // (albedo well below 1: not diffusive) diffusion_match's rule stands in.
+  if (decay) {
+    const double target = transport_decay_constant(p.sigma_a, p.sigma_s, p.g);
+    auto kappa = [](const OmegaMatrix& om) { return lattice_decay_constant(om, true); };
+    double peak = -0.95, peak_kappa = kappa(omega_at(peak));
+    for (double mc = -0.85; mc < 0.95 && !std::isnan(peak_kappa); mc += 0.1) {
+      const double k = kappa(omega_at(mc));  // NaN: I + Omega has a negative entry (no Perron mode)
+      if (!(k <= peak_kappa)) peak = mc, peak_kappa = k;
+    }
+    if (target <= peak_kappa) return omega_at(match(kappa, target, peak, 0.95));
   }
-  return assemble(p.sigma_a, sigma_s, 0.5 * (lo + hi), model, removed);
+  // diffusion_match: multiply scattered light gets the physical diffusion coefficient
+  // 1 / (3 (sigma_a + sigma_s (1 - g))); the lattice's falls as the mean cosine rises.
+  return omega_at(match([&](const OmegaMatrix& om) { return -lattice_diffusion(om, removed); },
+                        -1.0 / (3.0 * (p.sigma_a + sigma_s * (1.0 - g))), -0.95, 0.95));
+}
+
+}  // namespace
+
+OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
+  if (!model.calibrated) return build_omega(p);
+  // The matching bisections take milliseconds; validation, planning and every frame of a gas
+  // sequence ask for the same few materials again, so results are kept (a pure function).
+  unsigned switches = 0;
+  LbModel copy = model;
+  for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k) switches |= (*calibration_switch(copy, k) ? 1u : 0u) << k;
+  const auto key = std::make_tuple(p.sigma_a, p.sigma_s, p.g, switches);
+  static std::mutex mutex;
+  static std::map<std::tuple<double, double, double, unsigned>, OmegaMatrix> kept;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (auto it = kept.find(key); it != kept.end()) return it->second;
+  }
+  const OmegaMatrix om = build_calibrated_omega(p, model);
+  std::lock_guard<std::mutex> lock(mutex);
+  if (kept.size() >= 4096) kept.clear();
+  kept.emplace(key, om);
+  return om;
 }
 
 bool model_absorbs(bool material_absorbs, const LbModel& model) {

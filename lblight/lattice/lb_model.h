@@ -23,13 +23,23 @@ struct LbModel {
   // The discrete phase function's mean cosine chosen so that the lattice's diffusion coefficient
   // is the physical 1 / (3 sigma_tr) (replaces phase_moment's target g).
   bool diffusion_match = true;
+  // Absorption acts over the step's whole path: direction j absorbs 1 - exp(-sigma_a |c_j|) and
+  // scatters the rest of what it loses (instead of splitting 1 - exp(-sigma_t |c_j|) by albedo).
+  bool path_absorption = false;
+  // With diffusion_match, where the medium absorbs and remove_absorbed is on: the mean cosine
+  // chosen so that the lattice's decay constant deep inside the medium is exact transport's
+  // (lattice/decay_constant.h), where the lattice can reach it.
+  bool decay_match = true;
 
-  std::string name() const;  // "paper", "calibrated" or "calibrated (no path_length, ...)"
+  // "paper", "calibrated", or "calibrated (no path_length, ...; with path_absorption)": the
+  // corrections that differ from the defaults
+  std::string name() const;
 };
 
 // The names of the corrections, in the order above ("path_length", ...).
-inline constexpr std::array<const char*, 7> kCalibrationNames{
-    "path_length", "phase_moment", "delta_m", "isotropic_ambient", "remove_absorbed", "voxel_average", "diffusion_match"};
+inline constexpr std::array<const char*, 9> kCalibrationNames{
+    "path_length",     "phase_moment",  "delta_m",         "isotropic_ambient", "remove_absorbed",
+    "voxel_average",   "diffusion_match", "path_absorption", "decay_match"};
 bool* calibration_switch(LbModel& model, int k);  // the switch kCalibrationNames[k]
 
 // Omega of one material and channel under `model` (build_omega for the papers' model).

@@ -80,7 +80,8 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
       }
       // rho * sigma_t < 2 is not enough with backscattering (g < 0): a uniform region of this
       // density must not amplify any pattern of directions, or the scheme diverges there.
-      const double radius = collision_spectral_radius(build_model_omega(p, model), rho, model_absorbs(mat.absorbs, model));
+      const OmegaMatrix omega = build_model_omega(p, model);
+      const double radius = collision_spectral_radius(omega, rho, model_absorbs(mat.absorbs, model));
       if (radius > 1.0 + 1e-9) {
         Location where{scene.file.string(), m.json_path + field, voxel_string(g, st.max_index[k])};
         throw_invalid("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
@@ -92,7 +93,7 @@ GridStats check_stability(const ModelSpec& m, const ModelGrid& g, const Scene& s
                           "g; at g = -1 this needs rho * (sigma_a + 2 sigma_s) < 2)",
                       where);
       }
-      const double gain = min_diagonal_gain(build_model_omega(p, model), rho);
+      const double gain = min_diagonal_gain(omega, rho);
       if (gain < 0.0)
         warnings.push_back("model '" + m.name + "', material '" + mat.name + "', channel " + kChannelNames[c] +
                            ": 1 + rho * Omega_mm = " + message_number(gain) +
