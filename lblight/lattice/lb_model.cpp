@@ -127,7 +127,10 @@ OmegaMatrix build_calibrated_omega(const OpticalParams& p, const LbModel& model)
   }
   std::array<double, kQ> removed{};
   // decay_match refines diffusion_match and needs absorbed light to leave (else nothing decays).
-  const bool decay = model.decay_match && model.remove_absorbed && p.sigma_a > 0;
+  // Below sigma_t 0.05 per node (a mean free path of 20 nodes or more) light does not reach the
+  // asymptotic regime in a lattice of practical size, and the lattice's kappa, whose power
+  // iteration converges at the rate of one collision, would take seconds: D is matched there.
+  const bool decay = model.decay_match && model.remove_absorbed && p.sigma_a > 0 && p.sigma_a + sigma_s >= 0.05;
   if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0)
     return assemble(p.sigma_a, sigma_s, g, model, removed);
   auto omega_at = [&](double mean_cosine) { return assemble(p.sigma_a, sigma_s, mean_cosine, model, removed); };
