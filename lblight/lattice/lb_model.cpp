@@ -128,8 +128,7 @@ OmegaMatrix build_calibrated_omega(const OpticalParams& p, const LbModel& model)
   std::array<double, kQ> removed{};
   // decay_match refines diffusion_match and needs absorbed light to leave (else nothing decays).
   // Below sigma_t 0.05 per node (a mean free path of 20 nodes or more) light does not reach the
-  // asymptotic regime in a lattice of practical size, and the lattice's kappa, whose power
-  // iteration converges at the rate of one collision, would take seconds: D is matched there.
+  // asymptotic regime in a lattice of practical size: D is matched there, which is also cheaper.
   const bool decay = model.decay_match && model.remove_absorbed && p.sigma_a > 0 && p.sigma_a + sigma_s >= 0.05;
   if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0)
     return assemble(p.sigma_a, sigma_s, g, model, removed);
@@ -151,12 +150,15 @@ OmegaMatrix build_calibrated_omega(const OpticalParams& p, const LbModel& model)
   if (decay) {
     const double target = transport_decay_constant(p.sigma_a, p.sigma_s, p.g);
     auto kappa = [](const OmegaMatrix& om) { return lattice_decay_constant(om, true); };
-    double peak = -0.95, peak_kappa = kappa(omega_at(peak));
-    for (double mc = -0.85; mc < 0.95 && !std::isnan(peak_kappa); mc += 0.1) {
-      const double k = kappa(omega_at(mc));  // NaN: I + Omega has a negative entry (no Perron mode)
-      if (!(k <= peak_kappa)) peak = mc, peak_kappa = k;
+    double peak = 0.95, peak_kappa = -1.0;
+    for (double mc = -0.95; mc < 0.96; mc += 0.1) {
+      const double k = kappa(omega_at(mc));  // NaN (no Perron mode there): skipped
+      if (k > peak_kappa) peak = mc, peak_kappa = k;
     }
-    if (target <= peak_kappa) return omega_at(match(kappa, target, peak, 0.95));
+    if (target <= peak_kappa) {
+      const OmegaMatrix om = omega_at(match(kappa, target, peak, 0.95));
+      if (std::abs(kappa(om) / target - 1.0) < 1e-6) return om;  // else the branch was not monotone
+    }
   }
   // diffusion_match: multiply scattered light gets the physical diffusion coefficient
   // 1 / (3 (sigma_a + sigma_s (1 - g))); the lattice's falls as the mean cosine rises.
