@@ -126,12 +126,12 @@ OmegaMatrix build_calibrated_omega(const OpticalParams& p, const LbModel& model)
     g = (g - f) / (1.0 - f);
   }
   std::array<double, kQ> removed{};
+  if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0)
+    return assemble(p.sigma_a, sigma_s, g, model, removed);
   // decay_match refines diffusion_match and needs absorbed light to leave (else nothing decays).
   // Below sigma_t 0.05 per node (a mean free path of 20 nodes or more) light does not reach the
   // asymptotic regime in a lattice of practical size: D is matched there, which is also cheaper.
   const bool decay = model.decay_match && model.remove_absorbed && p.sigma_a > 0 && p.sigma_a + sigma_s >= 0.05;
-  if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0)
-    return assemble(p.sigma_a, sigma_s, g, model, removed);
   auto omega_at = [&](double mean_cosine) { return assemble(p.sigma_a, sigma_s, mean_cosine, model, removed); };
   // Bisection on [lo, hi], where the lattice's value falls as the mean cosine rises, for the mean
   // cosine whose value meets the target (clamped to the interval).

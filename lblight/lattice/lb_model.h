@@ -23,8 +23,9 @@ struct LbModel {
   // The discrete phase function's mean cosine chosen so that the lattice's diffusion coefficient
   // is the physical 1 / (3 sigma_tr) (replaces phase_moment's target g).
   bool diffusion_match = true;
-  // With path_length, absorption acts over the step's whole path: direction j absorbs 1 - exp(-sigma_a |c_j|) and
-  // scatters the rest of what it loses (instead of splitting 1 - exp(-sigma_t |c_j|) by albedo).
+  // With path_length, absorption acts over the step's whole path: direction j absorbs
+  // 1 - exp(-sigma_a |c_j|) and scatters the rest of what it loses (instead of splitting
+  // 1 - exp(-sigma_t |c_j|) by albedo).
   bool path_absorption = false;
   // With diffusion_match, where the medium absorbs and remove_absorbed is on: the mean cosine
   // chosen so that the lattice's decay constant deep inside the medium is exact transport's
