@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <sstream>
@@ -33,6 +34,7 @@ struct BenchArgs {
   bool json = false, gas = false;
   std::vector<int> time_blocks;  // empty: 1 and 0 (automatic) on the CPU, 0 elsewhere
   bool in_place = true;          // also one run with the state in place, where the backend offers it
+  std::vector<std::string> collisions{"cubic"};  // Omega's form on the CPU (SolverOptions::symmetric_collision)
 };
 
 // The gas solver (CPU, OpenMP) on a periodic size^3 box with a warm blob: node updates per second
@@ -60,6 +62,10 @@ nlohmann::json bench_gas(int size, int threads) {
 
 int run_bench(const BenchArgs& a) {
   auto backend = make_backend({a.backend, usable_threads(a.threads), a.device});
+  if (!backend->occupies_host_cores() &&
+      std::find(a.collisions.begin(), a.collisions.end(), "pairs") != a.collisions.end())
+    throw_invalid("--collision pairs: only the cpu backend takes it (the " + backend->name() +
+                  " backend picks each operator's form itself)");
   for (const std::string& pname : a.precisions)
     if (!backend->supports(parse_precision(pname)))
       throw_invalid("--precision " + pname + ": the " + backend->name() + " backend does not store it; allowed here: " +
@@ -84,28 +90,30 @@ int run_bench(const BenchArgs& a) {
       std::vector<std::pair<int, StateLayout>> variants;
       for (int block : blocks) variants.push_back({block, StateLayout::TwoLevels});
       if (a.in_place && backend->bytes_per_system_in_place(lat.dims, precision) > 0) variants.push_back({1, StateLayout::InPlace});
-      for (const auto& [block, layout] : variants) {
-        const ThroughputRun run =
-            measure_throughput(*backend, lat, precision, a.systems, a.steps, 0.3, 2.0, block, layout);
-        // What one update moves to and from memory: the whole update's bytes once per pass
-        // over the state, i.e. divided by the steps one pass runs (temporal blocking).
-        const double nominal = bytes_per_update(precision), moved = nominal / run.steps_per_pass;
-        out["runs"].push_back({{"lattice", {lat.dims.nx, lat.dims.ny, lat.dims.nz}},
-                               {"precision", pname},
-                               {"systems", a.systems},
-                               {"time_block", block},
-                               {"state", to_string(layout)},
-                               {"steps_per_pass", run.steps_per_pass},
-                               {"steps", run.steps},
-                               {"seconds", run.seconds},
-                               {"updates_per_second_per_channel", run.updates_per_second},
-                               {"bytes_per_update", nominal},
-                               {"memory_bytes_per_update", moved},
-                               {"achieved_gbs", run.updates_per_second * nominal / 1e9},
-                               {"memory_gbs", run.updates_per_second * moved / 1e9},
-                               {"state_bytes", run.state_bytes},
-                               {"state_within_cache", cache > 0 && run.state_bytes <= 2.0 * static_cast<double>(cache)}});
-      }
+      for (const auto& [block, layout] : variants)
+        for (const std::string& collision : a.collisions) {
+          const ThroughputRun run = measure_throughput(*backend, lat, precision, a.systems, a.steps, 0.3, 2.0, block,
+                                                       layout, collision == "cubic");
+          // What one update moves to and from memory: the whole update's bytes once per pass
+          // over the state, i.e. divided by the steps one pass runs (temporal blocking).
+          const double nominal = bytes_per_update(precision), moved = nominal / run.steps_per_pass;
+          out["runs"].push_back({{"lattice", {lat.dims.nx, lat.dims.ny, lat.dims.nz}},
+                                 {"precision", pname},
+                                 {"systems", a.systems},
+                                 {"time_block", block},
+                                 {"state", to_string(layout)},
+                                 {"collision", collision},
+                                 {"steps_per_pass", run.steps_per_pass},
+                                 {"steps", run.steps},
+                                 {"seconds", run.seconds},
+                                 {"updates_per_second_per_channel", run.updates_per_second},
+                                 {"bytes_per_update", nominal},
+                                 {"memory_bytes_per_update", moved},
+                                 {"achieved_gbs", run.updates_per_second * nominal / 1e9},
+                                 {"memory_gbs", run.updates_per_second * moved / 1e9},
+                                 {"state_bytes", run.state_bytes},
+                                 {"state_within_cache", cache > 0 && run.state_bytes <= 2.0 * static_cast<double>(cache)}});
+        }
     }
   }
   if (a.gas)
@@ -119,7 +127,7 @@ int run_bench(const BenchArgs& a) {
   bandwidth = std::max(bandwidth, after);
   out["copy_bandwidth_gbs"] = bandwidth / 1e9;
   out["cache_bytes"] = cache;
-  Table table({"lattice", "precision", "state", "systems", "steps/pass", "steps", "seconds", "MLUPS/channel", "B/update moved",
+  Table table({"lattice", "precision", "state", "Omega", "systems", "steps/pass", "steps", "seconds", "MLUPS/channel", "B/update moved",
                "memory GB/s", "of copy bw", "effective"});
   bool any_cached = false;
   for (auto& run : out["runs"]) {
@@ -140,7 +148,7 @@ int run_bench(const BenchArgs& a) {
     const auto& l = run["lattice"];
     table.add({std::to_string(l[0].get<int>()) + "x" + std::to_string(l[1].get<int>()) + "x" +
                    std::to_string(l[2].get<int>()),
-               run["precision"], run["state"], std::to_string(run["systems"].get<int>()),
+               run["precision"], run["state"], run["collision"], std::to_string(run["systems"].get<int>()),
                std::to_string(run["steps_per_pass"].get<int>()), std::to_string(run["steps"].get<int>()),
                format_seconds(run["seconds"].get<double>()), mlups, moved, gbs, frac, eff});
   }
@@ -235,6 +243,12 @@ Command add_bench_command(CLI::App& app, const GlobalOptions&) {
       ->check(CLI::Range(0, 64));
   cmd->add_flag("!--no-in-place", a->in_place,
                 "Skip the run with the state updated in place (one copy, AA pattern) added by default where the backend offers it");
+  cmd->add_option("--collision", a->collisions,
+                  "Form of the collision on the CPU, one run each: cubic (the symmetry-adapted form wherever the "
+                  "operator allows it, as bakes run) or pairs (the even/odd form for every operator, the kernel "
+                  "before it); e.g. --collision cubic pairs compares them side by side")
+      ->check(CLI::IsMember({"cubic", "pairs"}))
+      ->capture_default_str();
   cmd->add_flag("--json", a->json, "Print JSON");
   cmd->add_flag("--gas", a->gas, "Also time the gas solver (docs/fluid.md) at each --size on the CPU");
   return {cmd, [a] { return run_bench(*a); }};

@@ -205,7 +205,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     for (std::size_t i = 0; i < n_; ++i) wood_[i] = material_[i] == kMaterialWood ? 1.0f : 0.0f;
     for (const auto& ch : channels) {
       std::array<CollisionOp<Real>, kMaxMaterials> ops{};
-      for (int k = 0; k < material_count_; ++k) ops[k] = convert_op<Real>(channel_op(ch, k));
+      for (int k = 0; k < material_count_; ++k) {
+        ops[k] = convert_op<Real>(channel_op(ch, k));
+        if (!options.symmetric_collision) ops[k].is_cubic = 0;
+      }
       ops_.push_back(ops);
       unsigned bits = 0;
       for (int k = 0; k < kMaxMaterials; ++k)
@@ -1077,11 +1080,19 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void uniform_row(const Store* __restrict src, Store* __restrict dst, int y, int z, const CollisionOp<Real>& op,
                    Real keep) const {
     const float* __restrict rho = density_.data() + d_.index(0, y, z);
-    run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
-      Real f[kQ];
-      load(x, f);
-      collide_node(op, keep, static_cast<Real>(rho[x]), f, sink);
-    });
+    // the operator's form chosen once per row (collide.h): a branch per node stops the vectoriser
+    if (op.is_cubic)
+      run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+        Real f[kQ];
+        load(x, f);
+        collide_cubic(op, keep, static_cast<Real>(rho[x]), f, sink);
+      });
+    else
+      run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+        Real f[kQ];
+        load(x, f);
+        collide_pairs(op, keep, static_cast<Real>(rho[x]), f, sink);
+      });
   }
 
   // Rows where materials mix (wood among leaves): one SIMD loop still, as a sum of collisions,
@@ -1099,20 +1110,28 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const Real keep1 = f0_keep<Real>(absorb_bits, kMaterialWood);
     const CollisionOp<Real>& medium = ops[kMaterialMedium];
     const CollisionOp<Real>& woody = ops[kMaterialWood];
-    run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
-      Real f[kQ];
-      load(x, f);
-      const Real w = static_cast<Real>(wood[x]);
-      const Real rho = static_cast<Real>(density[x]);
-      const Real keep = keep0 + (keep1 - keep0) * w;
-      const Real f0t = f[0] * keep;
-      Real acc[kQ];
-      collide_node(medium, keep, rho * (Real(1) - w), f, [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] = v; });
-      collide_node(woody, keep, rho * w, f,
-                   [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] += v - (m == 0 ? f0t : f[m]); });
-      LBL_UNROLL
-      for (int m = 0; m < kQ; ++m) sink(m, acc[m]);
-    });
+    auto rows = [&](auto&& collide) LBL_INLINE_LAMBDA {
+      run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+        Real f[kQ];
+        load(x, f);
+        const Real w = static_cast<Real>(wood[x]);
+        const Real rho = static_cast<Real>(density[x]);
+        const Real keep = keep0 + (keep1 - keep0) * w;
+        const Real f0t = f[0] * keep;
+        Real acc[kQ];
+        collide(medium, keep, rho * (Real(1) - w), f, [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] = v; });
+        collide(woody, keep, rho * w, f,
+                [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] += v - (m == 0 ? f0t : f[m]); });
+        LBL_UNROLL
+        for (int m = 0; m < kQ; ++m) sink(m, acc[m]);
+      });
+    };
+    if (medium.is_cubic && woody.is_cubic)
+      rows([](const CollisionOp<Real>& op, Real keep, Real rho, const Real(&f)[kQ], auto&& store)
+               LBL_INLINE_LAMBDA { collide_cubic(op, keep, rho, f, store); });
+    else
+      rows([](const CollisionOp<Real>& op, Real keep, Real rho, const Real(&f)[kQ], auto&& store)
+               LBL_INLINE_LAMBDA { collide_pairs(op, keep, rho, f, store); });
   }
 
   Dims d_;

@@ -90,6 +90,10 @@ struct SolverOptions {
   // cache size (1 where the state fits in the cache anyway). Results are the same bits for any
   // value. GPU backends ignore it.
   int time_block = 0;
+  // CPU: false applies every material's Omega in the even/odd form (collide_pairs) even where the
+  // symmetry-adapted form would do (collision_op.h, is_cubic), to measure what that form gains;
+  // results agree up to float rounding. GPU backends ignore it.
+  bool symmetric_collision = true;
   // A backend that does not offer InPlace (bytes_per_system_in_place() == 0) refuses it at create().
   StateLayout layout = StateLayout::TwoLevels;
 };

@@ -10,6 +10,7 @@
 
 #include "lblight/core/hostdev.h"
 #include "lblight/lattice/collision_op.h"
+#include "lblight/lattice/cubic_form.h"
 #include "lblight/lattice/d3q19.h"
 
 namespace lblight {
@@ -46,12 +47,13 @@ LBL_HOSTDEV LBL_FORCEINLINE Real f0_deficit(const CollisionOp<OpReal>& op, const
   return s;
 }
 
-// The whole per-node update for a node of one material; post_m goes to store(m, value) as soon
-// as it is known. f0_keep is 0 for materials that absorb ("green" nodes dump what they absorbed
-// last step, [Steele2009] Listing 5.1) and 1 otherwise.
+// The whole per-node update for a node of one material in the even/odd form (every centrally
+// symmetric Omega); post_m goes to store(m, value) as soon as it is known. f0_keep is 0 for
+// materials that absorb ("green" nodes dump what they absorbed last step, [Steele2009] Listing
+// 5.1) and 1 otherwise.
 template <typename Real, typename OpReal, typename Store>
-LBL_HOSTDEV LBL_FORCEINLINE void collide_node(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
-                                              const Real (&f)[d3q19::kQ], Store&& store) {
+LBL_HOSTDEV LBL_FORCEINLINE void collide_pairs(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
+                                               const Real (&f)[d3q19::kQ], Store&& store) {
   const Real f0 = f[0] * f0_keep;
   Real e[kPairs], o[kPairs];
   split_pairs(f, e, o);
@@ -66,6 +68,34 @@ LBL_HOSTDEV LBL_FORCEINLINE void collide_node(const CollisionOp<OpReal>& op, Rea
     store(2 * m + 1, f[2 * m + 1] + rho * (E + O));
     store(2 * m + 2, f[2 * m + 2] + rho * (E - O));
   }
+}
+
+// The same update in the symmetry-adapted form (cubic_form.h), for operators with is_cubic set:
+// the same result up to float rounding, in about half the arithmetic.
+template <typename Real, typename OpReal, typename Store>
+LBL_HOSTDEV LBL_FORCEINLINE void collide_cubic(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
+                                               const Real (&f)[d3q19::kQ], Store&& store) {
+  const Real f0 = f[0] * f0_keep;
+  Real e[kPairs], o[kPairs], c[kCubicCoords], C[kCubicCoords], E[kPairs], O[kPairs], s0;
+  split_pairs(f, e, o);
+  cubic_coords(f0, e, o, c);
+  cubic_blocks(op.cubic, c, C);
+  cubic_rows(C, s0, E, O);
+  store(0, f0 + rho * s0);
+  LBL_UNROLL
+  for (int m = 0; m < kPairs; ++m) {
+    store(2 * m + 1, f[2 * m + 1] + rho * (E[m] + O[m]));
+    store(2 * m + 2, f[2 * m + 2] + rho * (E[m] - O[m]));
+  }
+}
+
+// One node of one material, in the cheaper form its operator allows. CPU loops pick the form
+// once per row instead (a branch inside the SIMD loop would stop GCC's vectoriser).
+template <typename Real, typename OpReal, typename Store>
+LBL_HOSTDEV LBL_FORCEINLINE void collide_node(const CollisionOp<OpReal>& op, Real f0_keep, Real rho,
+                                              const Real (&f)[d3q19::kQ], Store&& store) {
+  if (op.is_cubic) collide_cubic(op, f0_keep, rho, f, store);
+  else collide_pairs(op, f0_keep, rho, f, store);
 }
 
 }  // namespace lblight

@@ -13,6 +13,9 @@
 namespace lblight {
 
 inline constexpr int kPairs = 9;
+// Coefficients of the symmetry-adapted form (cubic_form.h): 9 + 4 + 4 + 1 + 4 + 1.
+inline constexpr int kCubicCoeffs = 23;
+
 
 template <typename T>
 struct CollisionOp {
@@ -25,10 +28,16 @@ struct CollisionOp {
   // half of Omega's column sums for the voxel average of the calibrated model (lb_model.h), the
   // mean of the light entering a node and leaving it after the collision.
   T total_gain[kPairs];     // per pair (a_m and b_m share their column sum)
+  // The same Omega in the cube's symmetry-adapted coordinates (collide.h, collide_cubic), when it
+  // commutes with the 48 rotations and reflections of the lattice (every isotropic material;
+  // not the ground, whose operator has an up and a down): 23 coefficients instead of 171.
+  T cubic[kCubicCoeffs];
+  int is_cubic;             // 1: cubic holds Omega exactly (to 1e-12 relative), 0: use even/odd
 };
 
 // Throws std::invalid_argument if omega is not centrally symmetric (to 1e-12 relative).
-// voxel_average: fill total_gain from the column sums (else 0).
+// voxel_average: fill total_gain from the column sums (else 0). is_cubic is set where omega
+// commutes with the lattice's symmetries (cubic_form.h), to 1e-12 of its largest entry.
 CollisionOp<double> reduce_omega(const OmegaMatrix& omega, bool voxel_average = false);
 
 template <typename T>
@@ -44,6 +53,8 @@ CollisionOp<T> convert_op(const CollisionOp<double>& op) {
     out.total_gain[i] = static_cast<T>(op.total_gain[i]);
   }
   out.diag0 = static_cast<T>(op.diag0);
+  for (int i = 0; i < kCubicCoeffs; ++i) out.cubic[i] = static_cast<T>(op.cubic[i]);
+  out.is_cubic = op.is_cubic;
   return out;
 }
 

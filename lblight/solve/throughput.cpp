@@ -59,8 +59,9 @@ double seconds_of(LatticeSolver& solver, int steps, std::vector<Residual>& r) {
 
 ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& lattice, Precision precision,
                                  int systems, int steps, double warmup_seconds, double target_seconds,
-                                 int time_block, StateLayout layout) {
+                                 int time_block, StateLayout layout, bool symmetric_collision) {
   SolverOptions so;
+  so.symmetric_collision = symmetric_collision;
   so.precision = precision;
   so.max_systems = systems;
   so.time_block = time_block;

@@ -29,10 +29,11 @@ struct ThroughputRun {
 // after a warm-up of at least `warmup_seconds` (doubling the steps from 2; 0: one 2-step
 // warm-up). steps 0: about `target_seconds` of work. measure() closes each timed span, so an
 // asynchronous backend's queued steps count.
-// time_block: SolverOptions::time_block (0: the backend's choice); layout: SolverOptions::layout.
+// time_block, layout, symmetric_collision: those of SolverOptions (time_block 0: the backend's choice).
 ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& lattice, Precision precision,
                                  int systems, int steps, double warmup_seconds = 0.3, double target_seconds = 2.0,
-                                 int time_block = 0, StateLayout layout = StateLayout::TwoLevels);
+                                 int time_block = 0, StateLayout layout = StateLayout::TwoLevels,
+                                 bool symmetric_collision = true);
 
 // The quick figure behind run-time estimates: one system on an edge^3 uniform lattice (edge 0: 48
 // on the CPU, 128 on a GPU, where a smaller lattice would sit in the L2 cache and time launches

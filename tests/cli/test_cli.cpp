@@ -219,6 +219,21 @@ TEST_CASE("NaN and Inf in a density grid are rejected with their voxel", "[cli][
   CHECK(m.err.find("nope.vdb") != std::string::npos);
 }
 
+TEST_CASE("bench runs the collision's two forms side by side", "[cli]") {
+  TempDir tmp;
+  const CliResult r = run_cli(
+      "bench --backend cpu --size 12 --steps 4 --time-block 1 --no-in-place --bandwidth-mib 4 --collision cubic pairs "
+      "--json",
+      tmp.path());
+  REQUIRE(r.exit_code == 0);
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  REQUIRE(j["runs"].size() == 2);
+  CHECK(j["runs"][0]["collision"] == "cubic");
+  CHECK(j["runs"][1]["collision"] == "pairs");
+  for (const auto& run : j["runs"]) CHECK(run["updates_per_second_per_channel"].get<double>() > 0);
+  CHECK(run_cli("bench --backend cpu --size 8 --collision dense", tmp.path()).exit_code == 2);
+}
+
 TEST_CASE("Missing files and bad options are invalid input", "[cli]") {
   TempDir tmp;
   const CliResult r = run_cli("bake does-not-exist.json -o out", tmp.path());

@@ -3,10 +3,13 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "lblight/lattice/collision_op.h"
 #include "lblight/lattice/collide.h"
 #include "lblight/lattice/d3q19.h"
+#include "lblight/lattice/ground.h"
+#include "lblight/lattice/lb_model.h"
 #include "lblight/lattice/omega.h"
 #include "tests/support/test_support.h"
 
@@ -110,6 +113,53 @@ TEST_CASE("Reduced even/odd operator equals the dense product", "[omega]") {
       }
     }
   }
+}
+
+TEST_CASE("Symmetry-adapted operator equals the dense product, and only isotropic operators take it", "[omega]") {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 2.0);
+  LbModel calibrated;
+  calibrated.calibrated = true;
+  std::vector<OmegaMatrix> isotropic;
+  for (double g : {-1.0, -0.4, 0.0, 0.3, 0.9, 1.0}) isotropic.push_back(build_omega({0.109, 0.891, g}));
+  for (const OpticalParams p : {OpticalParams{0.008, 0.792, 0.9}, OpticalParams{0.3, 0.3, 0.0},
+                                OpticalParams{0.01, 0.09, 0.5}, OpticalParams{2.0, 6.0, 0.4}})
+    isotropic.push_back(build_model_omega(p, calibrated));
+  for (const OmegaMatrix& om : isotropic) {
+    const CollisionOp<double> op = reduce_omega(om, true);
+    REQUIRE(op.is_cubic == 1);
+    for (int trial = 0; trial < 20; ++trial) {
+      double f[kQ];
+      for (int m = 0; m < kQ; ++m) f[m] = u(rng);
+      const double rho = 0.7, keep = trial % 2;
+      double cubic[kQ], pairs[kQ];
+      collide_cubic(op, keep, rho, f, [&](int m, double v) { cubic[m] = v; });
+      collide_pairs(op, keep, rho, f, [&](int m, double v) { pairs[m] = v; });
+      for (int m = 0; m < kQ; ++m) {
+        double s = 0;
+        for (int n = 0; n < kQ; ++n) s += om[m * kQ + n] * (n == 0 ? f[0] * keep : f[n]);
+        const double dense = (m == 0 ? f[0] * keep : f[m]) + rho * s;
+        CHECK(cubic[m] == Approx(dense).margin(1e-13));
+        CHECK(pairs[m] == Approx(dense).margin(1e-13));
+      }
+    }
+  }
+  // The ground reflects up what comes down: centrally symmetric, not cubic.
+  std::array<double, kQ> share{};
+  for (int m = 1; m < kQ; ++m) share[m] = d3q19::cz(m) > 0 ? 0.2 : 0.0;
+  CHECK(reduce_omega(ground_omega(0.3, share)).is_cubic == 0);
+  // One entry pair (and its mirror, keeping central symmetry) changed: x no longer like y.
+  OmegaMatrix skewed = build_omega({0.1, 0.8, 0.3});
+  skewed[1 * kQ + 3] += 1e-6;
+  skewed[2 * kQ + 4] += 1e-6;
+  const CollisionOp<double> op = reduce_omega(skewed);
+  CHECK(op.is_cubic == 0);
+  double f[kQ], post[kQ];
+  for (int m = 0; m < kQ; ++m) f[m] = u(rng);
+  collide_node(op, 1.0, 1.0, f, [&](int m, double v) { post[m] = v; });  // falls back to even/odd
+  double s = 0;
+  for (int n = 0; n < kQ; ++n) s += skewed[1 * kQ + n] * f[n];
+  CHECK(post[1] == Approx(f[1] + s).margin(1e-13));
 }
 
 TEST_CASE("Reduction rejects a matrix without central symmetry", "[omega]") {
