@@ -66,7 +66,12 @@ namespace lblight {
 
 CollisionOp<double> channel_op(const ChannelMaterials& channel, int material) {
   const auto k = static_cast<std::size_t>(material);
-  return reduce_omega(channel.omega[k], channel.voxel_average[k]);
+  CollisionOp<double> op = reduce_omega(channel.omega[k], channel.voxel_average[k]);
+  // The ground keeps the even/odd form even where it is cubic (albedo 0: Omega = -1): there it
+  // stops light exactly, so a black ground leaves the lattice above it as bare as no ground, bit
+  // for bit; the symmetry-adapted coordinates would leave rounding residues.
+  if (material == kMaterialGround) op.is_cubic = 0;
+  return op;
 }
 
 void StateAccess::add_mode(int system, const std::vector<double>& phi, const ModeShapes& shape,
