@@ -1,4 +1,5 @@
 #include "lblight/lattice/collision_op.h"
+#include "lblight/lattice/collide.h"  // split_pairs
 #include "lblight/lattice/cubic_form.h"
 
 #include <algorithm>
@@ -53,14 +54,11 @@ bool invert(std::vector<double> a, int n, std::vector<double>& inv) {
 // K has nothing outside the blocks cubic_blocks applies (to 1e-12 of its largest entry).
 void fit_cubic(const OmegaMatrix& om, CollisionOp<double>& op) {
   constexpr int n = kCubicCoords;
-  std::vector<double> coords(n * n), rows(n * n), k(n * n, 0.0);
+  std::vector<double> coords(n * n), rows(n * n);
   for (int j = 0; j < n; ++j) {  // column j: the image of unit vector j
     double f[kQ] = {}, e[kPairs], o[kPairs], c[n];
     f[j] = 1.0;
-    for (int p = 0; p < kPairs; ++p) {
-      e[p] = f[2 * p + 1] + f[2 * p + 2];
-      o[p] = f[2 * p + 1] - f[2 * p + 2];
-    }
+    split_pairs(f, e, o);
     cubic_coords(f[0], e, o, c);
     for (int i = 0; i < n; ++i) coords[static_cast<std::size_t>(i) * n + j] = c[i];
     double C[n] = {}, s0, E[kPairs], O[kPairs];
@@ -89,10 +87,12 @@ void fit_cubic(const OmegaMatrix& om, CollisionOp<double>& op) {
     std::vector<double> z(n * n, 0.0);
     for (int i = 0; i < n; ++i)
       for (int l = 0; l < n; ++l)
-        for (int j = 0; j < n; ++j) z[static_cast<std::size_t>(i) * n + j] += x[static_cast<std::size_t>(i) * n + l] * y[static_cast<std::size_t>(l) * n + j];
+        for (int j = 0; j < n; ++j)
+          z[static_cast<std::size_t>(i) * n + j] +=
+              x[static_cast<std::size_t>(i) * n + l] * y[static_cast<std::size_t>(l) * n + j];
     return z;
   };
-  k = product(rows_inv, product(h, coords_inv));
+  const std::vector<double> k = product(rows_inv, product(h, coords_inv));
   // Read the coefficients off K, then rebuild K from them through cubic_blocks: whatever differs
   // lies outside the blocks (or differs between components the symmetry makes equal).
   auto K = [&](int r, int c) { return k[static_cast<std::size_t>(r) * n + c]; };
