@@ -18,6 +18,7 @@
 // so rows still run in parallel, and every node sees the same arithmetic on the same inputs: the
 // same bits as two levels. Two surface passes keep the fixed boundary exact (edges_in_, edges_out_).
 #include "backends/openmp/openmp_backend.h"
+#include "backends/openmp/lit_spans.h"
 
 #include <omp.h>
 
@@ -196,6 +197,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         stores_(options.stores),
         flush_denormals_(options.flush_denormals),
         time_block_option_(options.time_block),
+        skip_dark_(options.skip_dark),
         in_place_(options.layout == StateLayout::InPlace) {
     check_geometry(g, "cpu");
     density_ = g.density;
@@ -244,6 +246,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       }
       fill(slot.state.data(), levels() * kQ * stride_, Store(0));
       for (int level = 0; level < levels(); ++level) set_boundary(slot, level);
+      if (skip_dark_ && !in_place_) slot.lit.reset(d_, slot.spec.boundary);
+      else slot.lit.light_all();
       const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
       init_totals(slot.totals.data(), total);
       init_totals(slot.scratch.data(), total);
@@ -364,6 +368,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
     unswap();
+    slot.lit.light_all();
     if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
     Store* g = slot.buffer(cur_);
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
@@ -388,6 +393,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   void step_layers(int z_lo, int z_hi) override {
     require_two_levels("the slab halo");
+    for (Slot& slot : slots_) slot.lit.light_all();  // the ghost layers come from other ranks
     if (now_ > 0)
       for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)], z_lo, z_hi);
   }
@@ -404,7 +410,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
   void write_layer(int system, int z, int sign, const double* in) override {
     require_two_levels("the slab halo");
-    Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
+    Slot& slot = slots_.at(static_cast<std::size_t>(system));
+    slot.lit.light_all();
+    Store* g = slot.buffer(cur_);
     for_layer(z, sign, [&](std::size_t k, std::size_t at) { g[at] = static_cast<Store>(in[k]); });
   }
 
@@ -414,6 +422,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (phi.size() != n_) throw std::invalid_argument("add_mode: wrong size");
     unswap();
+    slot.lit.light_all();
     if (now_ == 0) now_ = 1;  // as write_state
     Store* g = slot.buffer(cur_);
 #pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
@@ -463,6 +472,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void vector_to_state(int v) override {
     unswap();
     Slot& slot = slots_.front();
+    slot.lit.light_all();
     copy(vec(v), slot.buffer(cur_));
     set_boundary(slot, cur_);
     if (now_ == 0) now_ = 1;  // the state is now an arbitrary g, not the t = 0 special case
@@ -510,7 +520,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Store* __restrict dst = vec(y);
     const int nx = d_.nx;
     sweep<false>(src, dst, ops_[static_cast<std::size_t>(slot.spec.channel)],
-                 absorb_bits_[static_cast<std::size_t>(slot.spec.channel)], 1, d_.nz - 2, [&](int yy, int z) {
+                 absorb_bits_[static_cast<std::size_t>(slot.spec.channel)], 1, d_.nz - 2, WholeRows{}, [&](int yy, int z) {
                    const long long row = state_index(0, yy, z);
                    for (int m = 0; m < kQ; ++m) {
                      const Store* __restrict in = src + static_cast<long long>(m) * static_cast<long long>(stride_) + row;
@@ -552,6 +562,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     AlignedBuffer<Store> state;  // both time levels: 2 x 19 direction arrays, stride apart
     AlignedBuffer<Real> totals, scratch;
     std::size_t stride = 0;
+    LitSpans lit;  // where each level can be nonzero (lit_spans.h)
     Store* buffer(int level) { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
     const Store* buffer(int level) const { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
   };
@@ -699,9 +710,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const auto& b = slot.spec.boundary;
     if (!swapped_) {
       for (const Edge e : edges_in_) g[e] = static_cast<Store>(b[static_cast<std::size_t>(d3q19::opposite(static_cast<int>(e / stride_)))]);
-      sweep<false, Access::SwapOut>(g, g, ops, absorb_bits, 1, d_.nz - 2);
+      sweep<false, Access::SwapOut>(g, g, ops, absorb_bits, 1, d_.nz - 2, WholeRows{});
     } else {
-      sweep<false, Access::SwapIn>(g, g, ops, absorb_bits, 1, d_.nz - 2);
+      sweep<false, Access::SwapIn>(g, g, ops, absorb_bits, 1, d_.nz - 2, WholeRows{});
       for (const Edge e : edges_out_) g[e] = static_cast<Store>(b[e / stride_]);
     }
   }
@@ -738,19 +749,25 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     swapped_ = false;
   }
 
+  // One step of the system's state, rows the light has not reached skipped (lit_spans.h).
   void step_system(Slot& slot, int z_lo = 1, int z_hi = -1) {
-    sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_), z_lo, z_hi);
+    const int from = cur_;
+    sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_), z_lo, z_hi,
+                 [&](int y, int z) LBL_INLINE_LAMBDA { return slot.lit.advance(from, y, z); });
   }
 
   // One pull step from level src to level dst with the materials of slot's channel, over the
-  // layers z_lo..z_hi (-1: the last interior one).
-  void sweep_system(const Slot& slot, const Store* src, Store* dst, int z_lo = 1, int z_hi = -1) const {
+  // layers z_lo..z_hi (-1: the last interior one); span(y, z): the nodes of row (y, z) to sweep.
+  template <typename RowSpan = WholeRows>
+  void sweep_system(const Slot& slot, const Store* src, Store* dst, int z_lo = 1, int z_hi = -1,
+                    RowSpan&& span = WholeRows{}) const {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     if (z_hi < 0) z_hi = d_.nz - 2;
-    if (stream_) sweep<true>(src, dst, ops, absorb_bits, z_lo, z_hi);
-    else sweep<false>(src, dst, ops, absorb_bits, z_lo, z_hi);
+    if (stream_) sweep<true>(src, dst, ops, absorb_bits, z_lo, z_hi, span);
+    else sweep<false>(src, dst, ops, absorb_bits, z_lo, z_hi, span);
   }
+
 
   Store* vec(int v) { return vectors_.at(static_cast<std::size_t>(v)).data(); }
 
@@ -771,16 +788,17 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   // after_row(y, z) runs on the sweeping thread right after row (y, z) is written.
   // In place (A != Pull), src is not used: dst is the one level.
-  template <bool kStream, Access A = Access::Pull, typename AfterRow = void (*)(int, int)>
+  // span(y, z): the nodes of row (y, z) to sweep (lit_spans.h).
+  template <bool kStream, Access A = Access::Pull, typename RowSpan, typename AfterRow = void (*)(int, int)>
   void sweep(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
-             unsigned absorb_bits, int z_lo, int z_hi, AfterRow&& after_row = [](int, int) {}) const {
+             unsigned absorb_bits, int z_lo, int z_hi, RowSpan&& span, AfterRow&& after_row = [](int, int) {}) const {
 #pragma omp parallel num_threads(threads_)
     {
       const ScopedFlushDenormals ftz(flush_denormals_);
 #pragma omp for collapse(2) schedule(dynamic, 8)
       for (int z = z_lo; z <= z_hi; ++z)
         for (int y = 1; y < d_.ny - 1; ++y) {
-          sweep_row<kStream, A>(src, dst, ops, absorb_bits, y, z);
+          sweep_row<kStream, A>(src, dst, ops, absorb_bits, y, z, span(y, z));
           after_row(y, z);
         }
       if (kStream) stream_fence();  // make this thread's streaming stores visible before the barrier
@@ -815,7 +833,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // are the same bits. The last step streams its stores past the cache (when stream_ says so):
   // its layer is not read again in this pass.
   // With measure, stage t = depth is measure()'s row work on the final level (rows_).
-  void wavefront(const Slot& slot, int depth, bool measure = false) {
+  // Each step's rows record where they are lit for the next (lit_spans.h); those spans follow
+  // the same dependencies as the data, so they need no more synchronisation.
+  void wavefront(Slot& slot, int depth, bool measure = false) {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     const Store* level[2] = {slot.buffer(cur_), slot.buffer(1 - cur_)};
@@ -839,8 +859,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
             continue;
           }
           Store* dst = const_cast<Store*>(level[1 - t % 2]);
-          if (stream_last && t == depth - 1) sweep_row<true>(src, dst, ops, absorb_bits, y, z);
-          else sweep_row<false>(src, dst, ops, absorb_bits, y, z);
+          const Span span = slot.lit.advance(t % 2 == 0 ? cur_ : 1 - cur_, y, z);
+          if (stream_last && t == depth - 1) sweep_row<true>(src, dst, ops, absorb_bits, y, z, span);
+          else sweep_row<false>(src, dst, ops, absorb_bits, y, z, span);
         }
         if (stream_last) stream_fence();
       }
@@ -893,22 +914,24 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // One row's pull update: the row's materials pick the kernel (classify_rows).
   template <bool kStream, Access A = Access::Pull>
   LBL_FORCEINLINE void sweep_row(const Store* src, Store* dst, const std::array<CollisionOp<Real>, kMaxMaterials>& ops,
-                                 unsigned absorb_bits, int y, int z) const {
+                                 unsigned absorb_bits, int y, int z, Span span) const {
+    if (span.empty()) return;  // dark: its zeros are already there
     const std::size_t r = static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1);
     const unsigned mask = row_mask_[r];
     if ((mask & (mask - 1)) == 0) {
       const int k = __builtin_ctz(mask);
       const Real keep = f0_keep<Real>(absorb_bits, static_cast<unsigned>(k));
-      if (row_empty_[r]) stream_row<kStream, A>(src, dst, y, z, keep);
-      else uniform_row<kStream, A>(src, dst, y, z, ops[static_cast<std::size_t>(k)], keep);
+      if (row_empty_[r]) stream_row<kStream, A>(src, dst, y, z, span, keep);
+      else uniform_row<kStream, A>(src, dst, y, z, span, ops[static_cast<std::size_t>(k)], keep);
     } else {
-      mixed_row<kStream, A>(src, dst, y, z, ops, absorb_bits);
+      mixed_row<kStream, A>(src, dst, y, z, span, ops, absorb_bits);
     }
   }
 
   template <bool kStream, Access A, typename Node>
-  LBL_FORCEINLINE void run(const Store* __restrict src, Store* __restrict dst, int y, int z, Node&& node) const {
-    if constexpr (A == Access::Pull) run_row<kStream>(src, dst, y, z, node);
+  LBL_FORCEINLINE void run(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
+                           Node&& node) const {
+    if constexpr (A == Access::Pull) run_row<kStream>(src, dst, y, z, span, node);
     else run_row_in_place<A>(dst, y, z, node);
   }
 
@@ -977,9 +1000,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // sink(m, value). Full chunks start on a cache line and, with kStream, leave through a small
   // aligned buffer and non-temporal stores. The remainder is a full-width chunk shifted back to
   // end at nx-2: it recomputes a few nodes (same inputs, same outputs) instead of running a
-  // scalar tail, which would cost more than the rest of the row.
+  // scalar tail, which would cost more than the rest of the row. Only the chunks that meet `span`
+  // run (the others are dark: lit_spans.h).
   template <bool kStream, typename Node>
-  LBL_FORCEINLINE void run_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Node&& node) const {
+  LBL_FORCEINLINE void run_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
+                               Node&& node) const {
     const int nx = d_.nx;
     const long long srow = state_index(0, y, z);
     const long long stride = static_cast<long long>(stride_);
@@ -991,8 +1016,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = static_cast<Store>(v); });
       return;
     }
-    int x0 = 1;
-    for (; x0 + kLine - 1 <= nx - 2; x0 += kLine) {
+    int x0 = 1 + (span.lo - 1) / kLine * kLine;
+    for (; x0 + kLine - 1 <= nx - 2 && x0 <= span.hi; x0 += kLine) {
       Store* __restrict out = dst + srow + x0;
       LBL_UNROLL
       for (int m = 0; m < kQ; ++m) {  // past the row's end: still inside the state's allocation
@@ -1012,7 +1037,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
       }
     }
-    if (x0 <= nx - 2) {
+    if (x0 <= nx - 2 && x0 <= span.hi) {
       const int xs = nx - 1 - kLine;
       Store* __restrict out = dst + srow + xs;
       if constexpr (!kCanStream) {
@@ -1066,8 +1091,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   // Row with no medium: collision is the identity, only streaming remains.
   template <bool kStream, Access A>
-  void stream_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Real keep) const {
-    run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+  void stream_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span, Real keep) const {
+    run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       load(x, f);
       f[0] *= keep;
@@ -1077,18 +1102,18 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   template <bool kStream, Access A>
-  void uniform_row(const Store* __restrict src, Store* __restrict dst, int y, int z, const CollisionOp<Real>& op,
-                   Real keep) const {
+  void uniform_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
+                   const CollisionOp<Real>& op, Real keep) const {
     const float* __restrict rho = density_.data() + d_.index(0, y, z);
     // the operator's form chosen once per row (collide.h): a branch per node stops the vectoriser
     if (op.is_cubic)
-      run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+      run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
         Real f[kQ];
         load(x, f);
         collide_cubic(op, keep, static_cast<Real>(rho[x]), f, sink);
       });
     else
-      run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+      run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
         Real f[kQ];
         load(x, f);
         collide_pairs(op, keep, static_cast<Real>(rho[x]), f, sink);
@@ -1101,7 +1126,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // treatment. (A GPU simply picks the node's operator; this form is what GCC vectorises:
   // operator selection, integer compares and byte loads in the loop all stop it.)
   template <bool kStream, Access A>
-  void mixed_row(const Store* __restrict src, Store* __restrict dst, int y, int z,
+  void mixed_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
                  const std::array<CollisionOp<Real>, kMaxMaterials>& ops, unsigned absorb_bits) const {
     const std::size_t base = d_.index(0, y, z);
     const float* __restrict density = density_.data() + base;
@@ -1111,7 +1136,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const CollisionOp<Real>& medium = ops[kMaterialMedium];
     const CollisionOp<Real>& woody = ops[kMaterialWood];
     auto rows = [&](auto&& collide) LBL_INLINE_LAMBDA {
-      run<kStream, A>(src, dst, y, z, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+      run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
         Real f[kQ];
         load(x, f);
         const Real w = static_cast<Real>(wood[x]);
@@ -1156,6 +1181,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   int cur_ = 0;        // level holding g(now - 1): f(now) = gather from it
   bool stream_ = false;
   int time_block_option_ = 0;
+  bool skip_dark_ = true;  // SolverOptions::skip_dark
   int time_block_ = 1;  // steps per pass over the lattice (wavefront); from the option at reset
   bool in_place_ = false;  // one level, AA pattern (StateLayout::InPlace)
   bool swapped_ = false;   // in place: the last step was a swap-out step (odd steps since reset)

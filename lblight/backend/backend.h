@@ -94,6 +94,10 @@ struct SolverOptions {
   // symmetry-adapted form would do (collision_op.h, is_cubic), to measure what that form gains;
   // results agree up to float rounding. GPU backends ignore it.
   bool symmetric_collision = true;
+  // CPU: rows (and chunks of rows) the light cannot have reached yet since the reset are left at
+  // their 0 instead of being swept (the same bits: backends/openmp/lit_spans.h). false sweeps
+  // everything, to measure what skipping saves. GPU backends ignore it.
+  bool skip_dark = true;
   // A backend that does not offer InPlace (bytes_per_system_in_place() == 0) refuses it at create().
   StateLayout layout = StateLayout::TwoLevels;
 };
