@@ -634,7 +634,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   // Which materials each interior row holds; rows of one material run the plain collision,
   // rows of several run it once per material with the density masked, and rows with no medium
-  // only stream.
+  // only stream. Within a row, chunks with no medium only stream and chunks without wood run
+  // the medium's collision alone (mixed_row).
   void classify_rows() {
     const int rows_y = d_.ny - 2, rows_z = d_.nz - 2;
     row_mask_.assign(static_cast<std::size_t>(rows_y) * rows_z, 0);
@@ -648,6 +649,34 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           if (density_[i] != 0.0f) row_empty_[r] = 0;
         }
       }
+    // Chunks as run_row and run_row_in_place cut a row: whole cache lines from x = 1, the tail
+    // a whole line shifted back to end at nx - 2 (the in-place tail is a part of that), a row
+    // shorter than a line one chunk.
+    const int interior = d_.nx - 2;
+    chunks_per_row_ = (interior + kLine - 1) / kLine;
+    chunk_class_.assign(row_mask_.size() * static_cast<std::size_t>(chunks_per_row_), kEmptyChunk);
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int c = 0; c < chunks_per_row_; ++c) {
+          int lo = 1 + c * kLine;
+          const int hi = std::min(lo + kLine - 1, d_.nx - 2);
+          if (hi - lo + 1 < kLine && interior >= kLine) lo = d_.nx - 1 - kLine;
+          std::uint8_t k = kEmptyChunk;
+          for (int x = lo; x <= hi; ++x) {
+            const std::size_t i = d_.index(x, y, z);
+            if (wood_[i] != 0.0f) k = kWoodChunk;
+            else if (density_[i] != 0.0f && k == kEmptyChunk) k = kPlainChunk;
+          }
+          chunk_class_[(static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1)) * chunks_per_row_ +
+                       static_cast<std::size_t>(c)] = k;
+        }
+  }
+
+  // What a chunk of a row holds: no medium and no wood, medium but no wood, wood.
+  static constexpr std::uint8_t kEmptyChunk = 0, kPlainChunk = 1, kWoodChunk = 2;
+  const std::uint8_t* chunk_classes(int y, int z) const {
+    return chunk_class_.data() +
+           (static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1)) * chunks_per_row_;
   }
 
   template <typename T>
@@ -928,11 +957,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
   }
 
-  template <bool kStream, Access A, typename Node>
+  // pick(c, body) hands chunk c's node function to body (chunk_class_: a row's chunks may take
+  // different node functions, chosen per chunk, outside the SIMD loop).
+  template <bool kStream, Access A, typename Pick>
   LBL_FORCEINLINE void run(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
-                           Node&& node) const {
-    if constexpr (A == Access::Pull) run_row<kStream>(src, dst, y, z, span, node);
-    else run_row_in_place<A>(dst, y, z, node);
+                           Pick&& pick) const {
+    if constexpr (A == Access::Pull) run_row<kStream>(src, dst, y, z, span, pick);
+    else run_row_in_place<A>(dst, y, z, pick);
   }
 
   // Offset of q - c_m from q in the state layout.
@@ -942,8 +973,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   // run_row for the in-place steps: g is the one level, read and written by the same nodes.
   // No shifted last chunk (a node computed twice would read its own output after its store).
-  template <Access A, typename Node>
-  LBL_FORCEINLINE void run_row_in_place(Store* g, int y, int z, Node&& node) const {
+  template <Access A, typename Pick>
+  LBL_FORCEINLINE void run_row_in_place(Store* g, int y, int z, Pick&& pick) const {
     const int nx = d_.nx;
     const long long row = state_index(0, y, z);
     const long long stride = static_cast<long long>(stride_);
@@ -969,30 +1000,36 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       for (int x0 = 1; x0 < nx - 1; x0 += kLine) {
         prefetch(x0);
         const int x1 = std::min(x0 + kLine, nx - 1);
+        pick((x0 - 1) / kLine, [&](auto&& node) LBL_INLINE_LAMBDA {
 #pragma omp simd
-        for (int x = x0; x < x1; ++x)
-          node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[to(m, x)] = static_cast<Store>(v); });
+          for (int x = x0; x < x1; ++x)
+            node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[to(m, x)] = static_cast<Store>(v); });
+        });
       }
     } else {  // whole chunks converted 16 values per instruction; the remainder by value, its nodes
               // still a whole chunk's SIMD arithmetic (the extra lanes repeat node nx - 2, unstored)
       int x = 1;
       for (; x + kLine - 1 <= nx - 2; x += kLine) {
         prefetch(x);
-        staged_chunk(
-            x, nx - 2, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(g + from(m, x), stage); },
-            [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, g + to(m, x)); }, node);
+        pick((x - 1) / kLine, [&](auto&& node) LBL_INLINE_LAMBDA {
+          staged_chunk(
+              x, nx - 2, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(g + from(m, x), stage); },
+              [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, g + to(m, x)); }, node);
+        });
       }
       const int count = nx - 1 - x;
       if (count > 0)
-        staged_chunk(
-            x, nx - 2,
-            [&](int m, Real* stage) LBL_INLINE_LAMBDA {
-              for (int l = 0; l < kLine; ++l) stage[l] = l < count ? static_cast<Real>(g[from(m, x + l)]) : Real(0);
-            },
-            [&](int m, const Real* post) LBL_INLINE_LAMBDA {
-              for (int l = 0; l < count; ++l) g[to(m, x + l)] = static_cast<Store>(post[l]);
-            },
-            node);
+        pick((x - 1) / kLine, [&](auto&& node) LBL_INLINE_LAMBDA {
+          staged_chunk(
+              x, nx - 2,
+              [&](int m, Real* stage) LBL_INLINE_LAMBDA {
+                for (int l = 0; l < kLine; ++l) stage[l] = l < count ? static_cast<Real>(g[from(m, x + l)]) : Real(0);
+              },
+              [&](int m, const Real* post) LBL_INLINE_LAMBDA {
+                for (int l = 0; l < count; ++l) g[to(m, x + l)] = static_cast<Store>(post[l]);
+              },
+              node);
+        });
     }
   }
 
@@ -1002,18 +1039,20 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // end at nx-2: it recomputes a few nodes (same inputs, same outputs) instead of running a
   // scalar tail, which would cost more than the rest of the row. Only the chunks that meet `span`
   // run (the others are dark: lit_spans.h).
-  template <bool kStream, typename Node>
+  template <bool kStream, typename Pick>
   LBL_FORCEINLINE void run_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
-                               Node&& node) const {
+                               Pick&& pick) const {
     const int nx = d_.nx;
     const long long srow = state_index(0, y, z);
     const long long stride = static_cast<long long>(stride_);
     auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA { gather_row(src, srow, x, f); };
     if (nx - 2 < kLine) {
       Store* __restrict out = dst + srow;
+      pick(0, [&](auto&& node) LBL_INLINE_LAMBDA {
 #pragma omp simd
-      for (int x = 1; x < nx - 1; ++x)
-        node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = static_cast<Store>(v); });
+        for (int x = 1; x < nx - 1; ++x)
+          node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = static_cast<Store>(v); });
+      });
       return;
     }
     int x0 = 1 + (span.lo - 1) / kLine * kLine;
@@ -1024,29 +1063,33 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         __builtin_prefetch(src + srow + x0 + kPrefetchChunks * kLine - shift(m) + m * stride, 0, 3);
         if constexpr (!(kStream && kCanStream)) __builtin_prefetch(out + kPrefetchChunks * kLine + m * stride, 1, 3);
       }
-      if constexpr (!kCanStream) {
-        converted_chunk(src, out, srow + x0, x0, node);
-      } else if constexpr (kStream) {
-        alignas(64) Real post[kQ][kLine];
+      pick((x0 - 1) / kLine, [&](auto&& node) LBL_INLINE_LAMBDA {
+        if constexpr (!kCanStream) {
+          converted_chunk(src, out, srow + x0, x0, node);
+        } else if constexpr (kStream) {
+          alignas(64) Real post[kQ][kLine];
 #pragma omp simd
-        for (int l = 0; l < kLine; ++l) node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
-        for (int m = 0; m < kQ; ++m) stream_line(out + m * stride, post[m]);
-      } else {
+          for (int l = 0; l < kLine; ++l) node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
+          for (int m = 0; m < kQ; ++m) stream_line(out + m * stride, post[m]);
+        } else {
 #pragma omp simd
-        for (int l = 0; l < kLine; ++l)
-          node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
-      }
+          for (int l = 0; l < kLine; ++l)
+            node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
+        }
+      });
     }
     if (x0 <= nx - 2 && x0 <= span.hi) {
       const int xs = nx - 1 - kLine;
       Store* __restrict out = dst + srow + xs;
-      if constexpr (!kCanStream) {
-        converted_chunk(src, out, srow + xs, xs, node);
-      } else {
+      pick((x0 - 1) / kLine, [&](auto&& node) LBL_INLINE_LAMBDA {
+        if constexpr (!kCanStream) {
+          converted_chunk(src, out, srow + xs, xs, node);
+        } else {
 #pragma omp simd
-        for (int l = 0; l < kLine; ++l)
-          node(xs + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
-      }
+          for (int l = 0; l < kLine; ++l)
+            node(xs + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
+        }
+      });
     }
   }
 
@@ -1089,54 +1132,82 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       f[m] = static_cast<Real>(src[m * stride + row + x - d3q19::cx(m) - d3q19::cy(m) * pitch - d3q19::cz(m) * plane]);
   }
 
-  // Row with no medium: collision is the identity, only streaming remains.
-  template <bool kStream, Access A>
-  void stream_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span, Real keep) const {
-    run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+  // The node function of a medium-free row or chunk: the collision is the identity (rho = 0
+  // gives f~ exactly), only the f_0 treatment and the streaming remain.
+  static auto stream_node(Real keep) {
+    return [keep](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
       Real f[kQ];
       load(x, f);
       f[0] *= keep;
       LBL_UNROLL
       for (int m = 0; m < kQ; ++m) sink(m, f[m]);
-    });
+    };
   }
 
+  // The collision's two forms (collide.h) as callables, chosen once per row: a branch per node
+  // stops the vectoriser.
+  template <typename Body>
+  static void with_form(bool cubic, Body&& body) {
+    if (cubic)
+      body([](const CollisionOp<Real>& op, Real keep, Real rho, const Real(&f)[kQ], auto&& store)
+               LBL_INLINE_LAMBDA { collide_cubic(op, keep, rho, f, store); });
+    else
+      body([](const CollisionOp<Real>& op, Real keep, Real rho, const Real(&f)[kQ], auto&& store)
+               LBL_INLINE_LAMBDA { collide_pairs(op, keep, rho, f, store); });
+  }
+
+  // Row with no medium: collision is the identity, only streaming remains.
+  template <bool kStream, Access A>
+  void stream_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span, Real keep) const {
+    run<kStream, A>(src, dst, y, z, span, [&](int, auto&& body) LBL_INLINE_LAMBDA { body(stream_node(keep)); });
+  }
+
+  // Row of one material: its medium-free chunks only stream.
   template <bool kStream, Access A>
   void uniform_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
                    const CollisionOp<Real>& op, Real keep) const {
     const float* __restrict rho = density_.data() + d_.index(0, y, z);
-    // the operator's form chosen once per row (collide.h): a branch per node stops the vectoriser
-    if (op.is_cubic)
-      run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+    const std::uint8_t* chunk = chunk_classes(y, z);
+    with_form(op.is_cubic, [&](auto&& collide) LBL_INLINE_LAMBDA {
+      const auto dark = stream_node(keep);
+      const auto lit = [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
         Real f[kQ];
         load(x, f);
-        collide_cubic(op, keep, static_cast<Real>(rho[x]), f, sink);
+        collide(op, keep, static_cast<Real>(rho[x]), f, sink);
+      };
+      run<kStream, A>(src, dst, y, z, span, [&](int c, auto&& body) LBL_INLINE_LAMBDA {
+        if (chunk[c] == kEmptyChunk) body(dark);
+        else body(lit);
       });
-    else
-      run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
-        Real f[kQ];
-        load(x, f);
-        collide_pairs(op, keep, static_cast<Real>(rho[x]), f, sink);
-      });
+    });
   }
 
   // Rows where materials mix (wood among leaves): one SIMD loop still, as a sum of collisions,
   //   post = C_medium(f, rho (1 - w)) + C_wood(f, rho w) - f~,   w = 1 on wood nodes, else 0,
   // each term exact where it does not apply (rho 0 gives f~ exactly), with the node's own f_0
   // treatment. (A GPU simply picks the node's operator; this form is what GCC vectorises:
-  // operator selection, integer compares and byte loads in the loop all stop it.)
+  // operator selection, integer compares and byte loads in the loop all stop it.) Chunks without
+  // wood run the medium's collision alone and chunks without medium only stream: the terms they
+  // leave out are exact zeros there, so the values are the same.
   template <bool kStream, Access A>
   void mixed_row(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
                  const std::array<CollisionOp<Real>, kMaxMaterials>& ops, unsigned absorb_bits) const {
     const std::size_t base = d_.index(0, y, z);
     const float* __restrict density = density_.data() + base;
     const float* __restrict wood = wood_.data() + base;
+    const std::uint8_t* chunk = chunk_classes(y, z);
     const Real keep0 = f0_keep<Real>(absorb_bits, kMaterialMedium);
     const Real keep1 = f0_keep<Real>(absorb_bits, kMaterialWood);
     const CollisionOp<Real>& medium = ops[kMaterialMedium];
     const CollisionOp<Real>& woody = ops[kMaterialWood];
-    auto rows = [&](auto&& collide) LBL_INLINE_LAMBDA {
-      run<kStream, A>(src, dst, y, z, span, [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+    with_form(medium.is_cubic && woody.is_cubic, [&](auto&& collide) LBL_INLINE_LAMBDA {
+      const auto dark = stream_node(keep0);
+      const auto plain = [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
+        Real f[kQ];
+        load(x, f);
+        collide(medium, keep0, static_cast<Real>(density[x]), f, sink);
+      };
+      const auto mixed = [&](int x, auto&& load, auto&& sink) LBL_INLINE_LAMBDA {
         Real f[kQ];
         load(x, f);
         const Real w = static_cast<Real>(wood[x]);
@@ -1149,14 +1220,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
                 [&](int m, Real v) LBL_INLINE_LAMBDA { acc[m] += v - (m == 0 ? f0t : f[m]); });
         LBL_UNROLL
         for (int m = 0; m < kQ; ++m) sink(m, acc[m]);
+      };
+      run<kStream, A>(src, dst, y, z, span, [&](int c, auto&& body) LBL_INLINE_LAMBDA {
+        if (chunk[c] == kEmptyChunk) body(dark);
+        else if (chunk[c] == kPlainChunk) body(plain);
+        else body(mixed);
       });
-    };
-    if (medium.is_cubic && woody.is_cubic)
-      rows([](const CollisionOp<Real>& op, Real keep, Real rho, const Real(&f)[kQ], auto&& store)
-               LBL_INLINE_LAMBDA { collide_cubic(op, keep, rho, f, store); });
-    else
-      rows([](const CollisionOp<Real>& op, Real keep, Real rho, const Real(&f)[kQ], auto&& store)
-               LBL_INLINE_LAMBDA { collide_pairs(op, keep, rho, f, store); });
+    });
   }
 
   Dims d_;
@@ -1172,6 +1242,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   std::vector<std::array<CollisionOp<Real>, kMaxMaterials>> ops_;  // per channel and material
   std::vector<unsigned> absorb_bits_;     // per channel: bit k set when material k absorbs
   std::vector<std::uint8_t> row_mask_, row_empty_;
+  std::vector<std::uint8_t> chunk_class_;  // per interior row, chunks_per_row_ entries (classify_rows)
+  int chunks_per_row_ = 1;
   long long pitch_ = 0, plane_ = 0;       // padded row and plane lengths of the state
   std::size_t stride_ = 0;                // elements between direction arrays
   std::vector<Slot> slots_;

@@ -3,7 +3,9 @@
 // contract itself is tests/backend/conformance.cpp.
 #include <catch2/catch.hpp>
 
+#include "lblight/lattice/lb_model.h"
 #include "lblight/lattice/sun.h"
+#include "tests/support/reference_lattice.h"
 #include "tests/backend/emulated_gpu.h"
 #include "tests/support/test_support.h"
 
@@ -176,4 +178,48 @@ TEST_CASE("Skipping rows the light has not reached gives the same bits as sweepi
           CHECK(run(true) == run(false));
         }
   }
+}
+
+TEST_CASE("Chunks without medium or without wood match the literal reference update", "[transport]") {
+  // The row kernels run a chunk (a cache line of nodes) without medium as streaming alone and a
+  // chunk without wood in a mixed row as the medium's collision alone. Rows of 37 nodes: chunks
+  // 1-16, 17-32 and the shifted tail 20-35; each kind of chunk made somewhere.
+  const Dims d{37, 13, 11};
+  LatticeGeometry g = random_lattice(d, 0.95f, 0.15, 21);
+  REQUIRE(g.material_count == 2);
+  const auto clear = [&](int y, int z, int lo, int hi, bool medium_too) {
+    for (int x = lo; x <= hi; ++x) {
+      const std::size_t i = d.index(x, y, z);
+      g.material[i] = 0;
+      if (medium_too) g.density[i] = 0.0f;
+    }
+  };
+  for (int z = 1; z < d.nz - 1; ++z)
+    for (int y = 1; y < d.ny - 1; ++y) switch ((y + 2 * z) % 5) {
+        case 0: clear(y, z, 1, 16, true); break;    // no medium in the first chunk
+        case 1: clear(y, z, 17, 32, false); break;  // no wood in the second (the row still mixed)
+        case 2: clear(y, z, 20, 35, true); break;   // no medium in the tail
+        case 3: clear(y, z, 1, 35, false); break;   // one material
+        default: break;                             // as drawn
+      }
+  const OpticalParams leaf{0.109, 0.891, -0.12}, bark{0.2, 0.7, -1.0};
+  const auto backend = cpu_backend(2);
+  for (StateLayout layout : {StateLayout::TwoLevels, StateLayout::InPlace})
+    for (bool absorbs : {true, false})
+      for (int sol : {0, 2, 14}) {
+        INFO((layout == StateLayout::InPlace ? "in place" : "two levels") << ", solution " << sol << ", absorbs " << absorbs);
+        ReferenceLattice ref(g, {build_omega(leaf), build_omega(bark)}, {absorbs, false}, base(sol));
+        ref.step(29);
+        SolverOptions o;
+        o.precision = Precision::Float64;
+        o.layout = layout;
+        auto s = backend->create(g, {channel(leaf, absorbs, bark)}, o);
+        s->reset({system_for(0, base(sol))});
+        s->step(29);
+        std::vector<Residual> r;
+        s->measure(r);
+        std::vector<float> got(d.count());
+        s->read_totals(0, got.data());
+        CHECK(max_relative_difference(ref.totals(), std::vector<double>(got.begin(), got.end()), 1e-3) < 1e-6);
+      }
 }
