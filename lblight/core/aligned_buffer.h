@@ -7,18 +7,12 @@
 #include <new>
 #include <utility>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
-
 namespace lblight {
 
 template <typename T>
 class AlignedBuffer {
  public:
   static constexpr std::size_t kAlignment = 64;
-  static constexpr std::size_t kHugePage = std::size_t(2) << 20;
-  static constexpr std::size_t kHugeFrom = std::size_t(8) << 20;
 
   AlignedBuffer() = default;
   explicit AlignedBuffer(std::size_t count) { allocate(count); }
@@ -38,18 +32,9 @@ class AlignedBuffer {
   void allocate(std::size_t count) {
     release();
     if (count == 0) return;
-    const std::size_t raw = count * sizeof(T);
-    // Large arrays start on a huge page and ask for huge pages: a lattice row reads 19 and
-    // writes 19 direction arrays megabytes apart, and with 4 KiB pages (transparent huge pages
-    // in "madvise" mode, as many kernels and VMs run them) the address translations, not the
-    // bytes, bound the sweep (docs/performance.md).
-    const std::size_t align = raw >= kHugeFrom ? kHugePage : kAlignment;
-    const std::size_t bytes = ((raw + align - 1) / align) * align;
-    data_ = static_cast<T*>(std::aligned_alloc(align, bytes));
+    const std::size_t bytes = ((count * sizeof(T) + kAlignment - 1) / kAlignment) * kAlignment;
+    data_ = static_cast<T*>(std::aligned_alloc(kAlignment, bytes));
     if (!data_) throw std::bad_alloc();
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    if (align == kHugePage) madvise(data_, bytes, MADV_HUGEPAGE);  // advice only: failure is harmless
-#endif
     size_ = count;
   }
   void release() {
