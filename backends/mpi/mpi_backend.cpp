@@ -247,7 +247,9 @@ class MpiBackend final : public Backend {
                                                    std::to_string(g.dims.nz - 2) +
                                                    " interior layers; each rank needs at least one (run fewer ranks)");
     const SlabRange s = slab_range(g.dims.nz, ranks_, rank_);
-    return std::make_unique<MpiSlabSolver>(cpu_->create(slab_geometry(g, s), channels, options), g.dims, s, rank_,
+    SolverOptions slab = options;
+    slab.shift_streaming = false;  // the halo exchange reads and writes layers in the natural layout
+    return std::make_unique<MpiSlabSolver>(cpu_->create(slab_geometry(g, s), channels, slab), g.dims, s, rank_,
                                            ranks_);
   }
 

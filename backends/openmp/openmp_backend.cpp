@@ -17,6 +17,12 @@
 // into its own slot m: the natural layout again). Each entry has one reader and writer per step,
 // so rows still run in parallel, and every node sees the same arithmetic on the same inputs: the
 // same bits as two levels. Two surface passes keep the fixed boundary exact (edges_in_, edges_out_).
+//
+// On a sparse lattice (fewer than half its chunks hold medium, as a plant's) the two-level state
+// streams by position instead (shift_offsets): values move with the array offsets, only the
+// chunks with medium are touched, and the first operation that needs the natural layout (a
+// written state, the Krylov vectors) rotates it back (unshift). Rows the light has not reached
+// yet are skipped in the two-level pull (lit_spans.h).
 #include "backends/openmp/openmp_backend.h"
 #include "backends/openmp/lit_spans.h"
 
@@ -172,6 +178,7 @@ enum class Access {
   Pull,     // two levels: gather from src, store to the node's own entries in dst
   SwapOut,  // in place, even step: gather as Pull, store g_m into slot opposite(m) of q + c_m
   SwapIn,   // in place, odd step: f_m from the node's own slot opposite(m), g_m into its slot m
+  Shifted,  // streaming by position: f_m(q, t) at (q - t s_m) mod L, collided in place
 };
 
 // Real: the arithmetic; Store: the state's storage (Real, or _Float16 rounded to nearest even as
@@ -198,7 +205,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         flush_denormals_(options.flush_denormals),
         time_block_option_(options.time_block),
         skip_dark_(options.skip_dark),
-        in_place_(options.layout == StateLayout::InPlace) {
+        in_place_(options.layout == StateLayout::InPlace),
+        shift_option_(options.shift_streaming) {
     check_geometry(g, "cpu");
     density_ = g.density;
     material_ = g.material;
@@ -225,6 +233,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     stride_ = padded_stride(static_cast<std::size_t>(plane_ * d_.nz));
     slots_.resize(static_cast<std::size_t>(capacity_));
     if (in_place_) list_edges();
+    if (shift_option_ && sparse_ && kCanStream && !in_place_) list_shift_edges();
   }
 
   int capacity() const override { return capacity_; }
@@ -246,7 +255,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       }
       fill(slot.state.data(), levels() * kQ * stride_, Store(0));
       for (int level = 0; level < levels(); ++level) set_boundary(slot, level);
-      if (skip_dark_ && !in_place_) slot.lit.reset(d_, slot.spec.boundary);
+      if (skip_dark_ && !in_place_ && !shifted_) slot.lit.reset(d_, slot.spec.boundary);
       else slot.lit.light_all();
       const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
       init_totals(slot.totals.data(), total);
@@ -259,12 +268,32 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const double cache = static_cast<double>(host_last_level_cache_bytes());
     stream_ = kCanStream && !in_place_ &&
               (stores_ == StoreMode::Streaming || (stores_ == StoreMode::Auto && state_bytes > 2.0 * cache));
+    shifted_ = !shift_edges_.empty() && time_block_option_ <= 1;
+    if (shifted_) {
+      stream_ = false;
+      time_block_ = 1;
+      inject(0, true);
+      return;
+    }
     time_block_ = in_place_ ? 1
                   : time_block_option_ > 0 ? time_block_option_
                                            : auto_time_block(state_bytes / std::max(active_, 1), cache);
   }
 
   void step(int steps) override {
+    if (shifted_) {
+      for (int k = 0; k < steps; ++k) {
+        if (now_ == 0) {
+          inject(0, false);
+        } else {
+          shift_offsets(now_);
+          step_shifted();
+        }
+        ++now_;
+        inject(now_, true);
+      }
+      return;
+    }
     int done = 0;
     if (now_ == 0 && steps > 0) {
       // g(0) = C f(0) = 0 on the interior, which is what both levels already hold: the first
@@ -356,6 +385,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           }
           out[0] = out[nx - 1] = b;
           if (now_ == 0) continue;  // the interior is 0 before the first step
+          if (shifted_) {
+            for (int x = 1; x < nx - 1; ++x) out[x] = static_cast<double>(g[shifted_at(m, state_index(x, y, z))]);
+            continue;
+          }
           const Store* src = g + static_cast<std::size_t>(from) * stride_ + (state_index(0, y, z) - shift);
           for (int x = 1; x < nx - 1; ++x) out[x] = static_cast<double>(src[x]);
         }
@@ -368,6 +401,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
     unswap();
+    unshift();
     slot.lit.light_all();
     if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
     Store* g = slot.buffer(cur_);
@@ -393,6 +427,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   void step_layers(int z_lo, int z_hi) override {
     require_two_levels("the slab halo");
+    unshift();
     for (Slot& slot : slots_) slot.lit.light_all();  // the ghost layers come from other ranks
     if (now_ > 0)
       for (int s = 0; s < active_; ++s) step_system(slots_[static_cast<std::size_t>(s)], z_lo, z_hi);
@@ -405,11 +440,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // In place, the slab halo would have to follow the swapped layout: the mpi backend keeps two levels.
   void read_layer(int system, int z, int sign, double* out) const override {
     require_two_levels("the slab halo");
+    if (shifted_) throw std::logic_error("the slab halo needs SolverOptions::shift_streaming off");
     const Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(cur_);
     for_layer(z, sign, [&](std::size_t k, std::size_t at) { out[k] = static_cast<double>(g[at]); });
   }
   void write_layer(int system, int z, int sign, const double* in) override {
     require_two_levels("the slab halo");
+    unshift();
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     slot.lit.light_all();
     Store* g = slot.buffer(cur_);
@@ -422,6 +459,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (phi.size() != n_) throw std::invalid_argument("add_mode: wrong size");
     unswap();
+    unshift();
     slot.lit.light_all();
     if (now_ == 0) now_ = 1;  // as write_state
     Store* g = slot.buffer(cur_);
@@ -464,6 +502,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   void vector_from_state(int v) override {
     unswap();
+    unshift();
     Slot& slot = slots_.front();
     copy(slot.buffer(cur_), vec(v));
     zero_boundary(vec(v));
@@ -471,6 +510,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   void vector_to_state(int v) override {
     unswap();
+    unshift();
     Slot& slot = slots_.front();
     slot.lit.light_all();
     copy(vec(v), slot.buffer(cur_));
@@ -482,6 +522,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     // b = T(0): one step from a zero interior with the real boundary values, built in the
     // free time level.
     // (in place there is no free level: a temporary one)
+    unshift();
     Slot& slot = slots_.front();
     AlignedBuffer<Store> spare;
     if (in_place_) spare.allocate(kQ * stride_);
@@ -622,6 +663,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   // f_m(q) = g_m(q - c_m): the pre-collision values of node q (swapped: q's own slots opposite(m)).
   void gather(const Store* g, long long q, Real (&f)[kQ]) const {
+    if (shifted_) {
+      for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[shifted_at(m, q)]);
+      return;
+    }
     if (swapped_) {
       for (int m = 0; m < kQ; ++m)
         f[m] = static_cast<Real>(g[static_cast<std::size_t>(d3q19::opposite(m)) * stride_ + static_cast<std::size_t>(q)]);
@@ -670,6 +715,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           chunk_class_[(static_cast<std::size_t>(z - 1) * rows_y + static_cast<std::size_t>(y - 1)) * chunks_per_row_ +
                        static_cast<std::size_t>(c)] = k;
         }
+    const auto busy = chunk_class_.size() - static_cast<std::size_t>(std::count(chunk_class_.begin(), chunk_class_.end(), kEmptyChunk));
+    sparse_ = 2 * busy < chunk_class_.size();
   }
 
   // What a chunk of a row holds: no medium and no wood, medium but no wood, wood.
@@ -703,6 +750,72 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   int levels() const { return in_place_ ? 1 : 2; }
+
+  // Streaming by position, for sparse lattices (docs/performance.md). f_m(q, t) is kept in
+  // level 0 at position (q - t s_m) mod L of direction array m (s_m: c_m's offset in the state
+  // index, L = stride_). Then the value a node stores at step t is where node q + c_m reads it at
+  // t + 1: streaming moves nothing, and a step is the in-place collision of the chunks that hold
+  // medium plus writing the boundary-fed entries (f_m(q) with q - c_m on the boundary), which
+  // the moving positions leave stale. Each node computes what the pull computes: the same bits.
+  // offset_[m] = t s_m mod L for the time of the state at hand.
+  void shift_offsets(long long t) {
+    const long long L = static_cast<long long>(stride_);
+    for (int m = 0; m < kQ; ++m) {
+      long long o = ((t % L) * (shift(m) % L)) % L;
+      if (o < 0) o += L;
+      offset_[m] = o;
+    }
+  }
+  long long shifted_at(int m, long long q) const {
+    long long p = q - offset_[m];
+    if (p < 0) p += static_cast<long long>(stride_);
+    return static_cast<long long>(m) * static_cast<long long>(stride_) + p;
+  }
+  // f(t)'s boundary-fed entries set to the boundary values (or to 0: the first step, which only
+  // advances the clock, must not stream f(0)'s); offset_ is left at t.
+  void inject(long long t, bool set) {
+    shift_offsets(t);
+    for (int s = 0; s < active_; ++s) {
+      Slot& slot = slots_[static_cast<std::size_t>(s)];
+      Store* g = slot.buffer(0);
+      const std::size_t n = shift_edges_.size();
+#pragma omp parallel for schedule(static) num_threads(threads_)
+      for (std::size_t k = 0; k < n; ++k) {
+        const auto& e = shift_edges_[k];
+        g[shifted_at(e.first, e.second)] = set ? static_cast<Store>(slot.spec.boundary[e.first]) : Store(0);
+      }
+    }
+  }
+  void list_shift_edges() {
+    for (int z = 1; z < d_.nz - 1; ++z)
+      for (int y = 1; y < d_.ny - 1; ++y)
+        for (int x = 1; x < d_.nx - 1; ++x) {
+          if (x > 1 && x < d_.nx - 2 && y > 1 && y < d_.ny - 2 && z > 1 && z < d_.nz - 2) continue;
+          for (int m = 1; m < kQ; ++m)
+            if (d_.is_boundary(x - d3q19::cx(m), y - d3q19::cy(m), z - d3q19::cz(m)))
+              shift_edges_.emplace_back(m, state_index(x, y, z));
+        }
+  }
+  // One collision of every chunk with medium, in place at f(now_)'s positions.
+  void step_shifted() {
+    for (int s = 0; s < active_; ++s) {
+      Slot& slot = slots_[static_cast<std::size_t>(s)];
+      const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
+      const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+      Store* g = slot.buffer(0);
+#pragma omp parallel num_threads(threads_)
+      {
+        const ScopedFlushDenormals ftz(flush_denormals_);
+#pragma omp for collapse(2) schedule(dynamic, 8)
+        for (int z = 1; z < d_.nz - 1; ++z)
+          for (int y = 1; y < d_.ny - 1; ++y) {
+            const std::size_t r = static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1);
+            if (row_empty_[r]) continue;
+            sweep_row<false, Access::Shifted>(g, g, ops, absorb_bits, y, z, WholeRows{}(y, z));
+          }
+      }
+    }
+  }
 
   void require_two_levels(const char* what) const {
     if (in_place_) throw std::logic_error(std::string(what) + " needs the cpu solver's two-level state layout");
@@ -779,6 +892,31 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // One step of the system's state, rows the light has not reached skipped (lit_spans.h).
+  // Leaves streaming by position for the natural two-level layout, until the next reset: each
+  // direction array rotated so that g(now - 1) sits at its nodes in level 0, the boundary values
+  // restored (the other level still holds them from the reset).
+  void unshift() {
+    if (!shifted_) return;
+    shifted_ = false;
+    const long long L = static_cast<long long>(stride_);
+    if (now_ > 0) shift_offsets(now_ - 1);
+    for (int s = 0; s < active_; ++s) {
+      Slot& slot = slots_[static_cast<std::size_t>(s)];
+      Store* g = slot.buffer(0);
+      slot.lit.light_all();
+      if (now_ == 0) {
+        fill(g, kQ * stride_, Store(0));
+      } else {
+        for (int m = 1; m < kQ; ++m) {
+          Store* a = g + static_cast<std::size_t>(m) * stride_;
+          std::rotate(a, a + (L - offset_[m]) % L, a + L);
+        }
+      }
+      set_boundary(slot, 0);
+    }
+    cur_ = 0;
+  }
+
   void step_system(Slot& slot, int z_lo = 1, int z_hi = -1) {
     const int from = cur_;
     sweep_system(slot, slot.buffer(cur_), slot.buffer(1 - cur_), z_lo, z_hi,
@@ -906,10 +1044,24 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Real* next = const_cast<Real*>(slot.scratch.data());
     const std::size_t base = d_.index(0, y, z);
     RowSums r{};
+    const Store* row_base[kQ];
+    bool whole = shifted_;
+    if (shifted_) {
+      const long long L = static_cast<long long>(stride_), row = state_index(0, y, z);
+      for (int m = 0; m < kQ; ++m) {
+        long long p = row - offset_[m];
+        if (p < 0) p += L;
+        whole = whole && p + d_.nx <= L;
+        row_base[m] = g + static_cast<long long>(m) * L + p;
+      }
+    }
     for (int x = 1; x < d_.nx - 1; ++x) {
       const std::size_t i = base + static_cast<std::size_t>(x);
       Real f[kQ];
-      gather(g, state_index(x, y, z), f);
+      if (whole)
+        for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(row_base[m][x]);
+      else
+        gather(g, state_index(x, y, z), f);
       const unsigned k = material_[i];
       accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i], next[i]));
     }
@@ -963,7 +1115,51 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   LBL_FORCEINLINE void run(const Store* __restrict src, Store* __restrict dst, int y, int z, Span span,
                            Pick&& pick) const {
     if constexpr (A == Access::Pull) run_row<kStream>(src, dst, y, z, span, pick);
+    else if constexpr (A == Access::Shifted) run_row_shifted(dst, y, z, pick);
     else run_row_in_place<A>(dst, y, z, pick);
+  }
+
+  // run_row for streaming by position: the chunks of row (y, z) that hold medium, each node
+  // once (the tail is not shifted back), through one pointer per direction unless the chunk
+  // straddles the end of a direction array.
+  template <typename Pick>
+  LBL_FORCEINLINE void run_row_shifted(Store* g, int y, int z, Pick&& pick) const {
+    const int nx = d_.nx;
+    const long long row = state_index(0, y, z);
+    const std::uint8_t* cls = chunk_classes(y, z);
+    auto load = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+      LBL_UNROLL
+      for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[shifted_at(m, row + x)]);
+    };
+    const long long L = static_cast<long long>(stride_);
+    for (int c = 0; c < chunks_per_row_; ++c) {
+      if (cls[c] == kEmptyChunk) continue;
+      const int x0 = 1 + c * kLine, x1 = std::min(x0 + kLine, nx - 1);
+      Store* base[kQ];
+      bool whole = true;
+      for (int m = 0; m < kQ; ++m) {
+        long long p = row + x0 - offset_[m];
+        if (p < 0) p += L;
+        whole = whole && p + (x1 - x0) <= L;
+        base[m] = g + static_cast<long long>(m) * L + p - x0;
+      }
+      if (whole) {
+        auto near = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
+          LBL_UNROLL
+          for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(base[m][x]);
+        };
+        pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
+#pragma omp simd
+          for (int x = x0; x < x1; ++x)
+            node(x, near, [&](int m, Real v) LBL_INLINE_LAMBDA { base[m][x] = static_cast<Store>(v); });
+        });
+      } else {
+        pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
+          for (int x = x0; x < x1; ++x)
+            node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[shifted_at(m, row + x)] = static_cast<Store>(v); });
+        });
+      }
+    }
   }
 
   // Offset of q - c_m from q in the state layout.
@@ -1256,6 +1452,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   bool skip_dark_ = true;  // SolverOptions::skip_dark
   int time_block_ = 1;  // steps per pass over the lattice (wavefront); from the option at reset
   bool in_place_ = false;  // one level, AA pattern (StateLayout::InPlace)
+  // Streaming by position (see shift_offsets): chosen at reset for sparse lattices, left for
+  // the two-level pull at the first operation that needs the natural layout (unshift).
+  bool shift_option_ = true;  // SolverOptions::shift_streaming
+  bool sparse_ = false;       // fewer than half the chunks hold medium (classify_rows)
+  bool shifted_ = false;
+  long long offset_[kQ] = {};  // position offsets of f(now_) (shift_offsets)
+  std::vector<std::pair<int, long long>> shift_edges_;  // (m, q): f_m(q) fed by a boundary node
   bool swapped_ = false;   // in place: the last step was a swap-out step (odd steps since reset)
   std::vector<Edge> edges_in_, edges_out_;
 };
