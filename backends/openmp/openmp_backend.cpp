@@ -1149,9 +1149,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(base[m][x]);
         };
         pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
+          Store* const* to = base;  // a local of this lambda (clang: see run_row)
 #pragma omp simd
           for (int x = x0; x < x1; ++x)
-            node(x, near, [&](int m, Real v) LBL_INLINE_LAMBDA { base[m][x] = static_cast<Store>(v); });
+            node(x, near, [&](int m, Real v) LBL_INLINE_LAMBDA { to[m][x] = static_cast<Store>(v); });
         });
       } else {
         pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
@@ -1197,9 +1198,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         prefetch(x0);
         const int x1 = std::min(x0 + kLine, nx - 1);
         pick((x0 - 1) / kLine, [&](auto&& node) LBL_INLINE_LAMBDA {
+          Store* const state = g;  // locals of this lambda (clang: see run_row)
+          const auto& put = to;
 #pragma omp simd
           for (int x = x0; x < x1; ++x)
-            node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[to(m, x)] = static_cast<Store>(v); });
+            node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { state[put(m, x)] = static_cast<Store>(v); });
         });
       }
     } else {  // whole chunks converted 16 values per instruction; the remainder by value, its nodes
@@ -1245,9 +1248,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     if (nx - 2 < kLine) {
       Store* __restrict out = dst + srow;
       pick(0, [&](auto&& node) LBL_INLINE_LAMBDA {
+        // clang refuses, inside an OpenMP region within a generic lambda, an inner lambda's
+        // reference to the enclosing function's locals: it gets this lambda's own copies
+        Store* __restrict to = out;
+        const long long step = stride;
 #pragma omp simd
         for (int x = 1; x < nx - 1; ++x)
-          node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + x] = static_cast<Store>(v); });
+          node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { to[m * step + x] = static_cast<Store>(v); });
       });
       return;
     }
@@ -1268,9 +1275,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           for (int l = 0; l < kLine; ++l) node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { post[m][l] = v; });
           for (int m = 0; m < kQ; ++m) stream_line(out + m * stride, post[m]);
         } else {
+          Store* __restrict to = out;
+          const long long step = stride;
 #pragma omp simd
           for (int l = 0; l < kLine; ++l)
-            node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
+            node(x0 + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { to[m * step + l] = static_cast<Store>(v); });
         }
       });
     }
@@ -1281,9 +1290,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         if constexpr (!kCanStream) {
           converted_chunk(src, out, srow + xs, xs, node);
         } else {
+          Store* __restrict to = out;
+          const long long step = stride;
 #pragma omp simd
           for (int l = 0; l < kLine; ++l)
-            node(xs + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { out[m * stride + l] = static_cast<Store>(v); });
+            node(xs + l, load, [&](int m, Real v) LBL_INLINE_LAMBDA { to[m * step + l] = static_cast<Store>(v); });
         }
       });
     }
