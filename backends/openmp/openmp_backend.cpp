@@ -255,7 +255,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       }
       fill(slot.state.data(), levels() * kQ * stride_, Store(0));
       for (int level = 0; level < levels(); ++level) set_boundary(slot, level);
-      if (skip_dark_ && !in_place_ && !shifted_) slot.lit.reset(d_, slot.spec.boundary);
+      if (skip_dark_ && !in_place_) slot.lit.reset(d_, slot.spec.boundary);
       else slot.lit.light_all();
       const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
       init_totals(slot.totals.data(), total);
