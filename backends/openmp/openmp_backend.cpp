@@ -1036,34 +1036,83 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   }
 
   // measure()'s work on row (y, z) of system slot, whose current level is g: the node rules'
-  // sums (backend/node_rules.h) into rows_, the new totals into the scratch array.
+  // sums (backend/node_rules.h) into rows_, the new totals into the scratch array. The totals
+  // of a block of nodes are summed across x in SIMD, direction by direction (each node's sum in
+  // node_residual's order: the same bits), then reduced node by node in x order.
   void measure_row(const Slot& slot, const Store* g, int y, int z) {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
     const Real* prev = slot.totals.data();
     Real* next = const_cast<Real*>(slot.scratch.data());
     const std::size_t base = d_.index(0, y, z);
+    const int nx = d_.nx;
     RowSums r{};
+    // row_base[m][x]: f_m of node x of this row, unless a direction array wraps inside the row
     const Store* row_base[kQ];
-    bool whole = shifted_;
-    if (shifted_) {
-      const long long L = static_cast<long long>(stride_), row = state_index(0, y, z);
-      for (int m = 0; m < kQ; ++m) {
+    bool whole = true;
+    const long long L = static_cast<long long>(stride_), row = state_index(0, y, z);
+    for (int m = 0; m < kQ; ++m) {
+      if (shifted_) {
         long long p = row - offset_[m];
         if (p < 0) p += L;
-        whole = whole && p + d_.nx <= L;
+        whole = whole && p + nx <= L;
         row_base[m] = g + static_cast<long long>(m) * L + p;
+      } else if (swapped_) {
+        row_base[m] = g + static_cast<long long>(d3q19::opposite(m)) * L + row;
+      } else {
+        row_base[m] = g + static_cast<long long>(m) * L + row - d3q19::cx(m) - d3q19::cy(m) * pitch_ -
+                      d3q19::cz(m) * plane_;
       }
     }
-    for (int x = 1; x < d_.nx - 1; ++x) {
-      const std::size_t i = base + static_cast<std::size_t>(x);
-      Real f[kQ];
-      if (whole)
-        for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(row_base[m][x]);
-      else
+    if (!whole) {
+      for (int x = 1; x < nx - 1; ++x) {
+        const std::size_t i = base + static_cast<std::size_t>(x);
+        Real f[kQ];
         gather(g, state_index(x, y, z), f);
-      const unsigned k = material_[i];
-      accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i], next[i]));
+        const unsigned k = material_[i];
+        accumulate(r.v, node_residual(ops[k], f0_keep<Real>(absorb_bits, k) != Real(0), density_[i], f, prev[i], next[i]));
+      }
+      rows_[static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1)] = r;
+      return;
+    }
+    constexpr int kBlock = 4 * kLine;
+    alignas(64) Real t[kBlock], rho[kBlock];
+    alignas(64) std::uint8_t mat[kBlock];
+    for (int x0 = 1; x0 < nx - 1; x0 += kBlock) {
+      const int n = std::min(kBlock, nx - 1 - x0);
+      const float* dens = density_.data() + base + x0;
+      const std::uint8_t* mats = material_.data() + base + x0;
+      const Store* f0 = row_base[0] + x0;
+#pragma omp simd
+      for (int j = 0; j < n; ++j) {
+        t[j] = static_cast<Real>(f0[j]);
+        rho[j] = static_cast<Real>(dens[j]);
+        mat[j] = mats[j];
+      }
+      for (int m = 1; m < kQ; ++m) {
+        const int p = (m - 1) / 2;
+        const Real g0 = ops[0].total_gain[p], g1 = ops[1].total_gain[p], g2 = ops[2].total_gain[p];
+        const Store* fm = row_base[m] + x0;
+#pragma omp simd
+        for (int j = 0; j < n; ++j) {
+          const Real gain = mat[j] == 0 ? g0 : (mat[j] == 1 ? g1 : g2);
+          t[j] += static_cast<Real>(fm[j]) * (Real(1) + rho[j] * gain);
+        }
+      }
+      for (int j = 0; j < n; ++j) {
+        const std::size_t i = base + static_cast<std::size_t>(x0 + j);
+        next[i] = t[j];
+        NodeResidual nr;
+        nr.total = static_cast<double>(t[j]);
+        nr.diff = static_cast<double>(t[j]) - static_cast<double>(prev[i]);
+        const unsigned k = mat[j];
+        if (rho[j] > Real(0) && f0_keep<Real>(absorb_bits, k) != Real(0)) {
+          Real f[kQ];
+          for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(row_base[m][x0 + j]);
+          nr.deficit = static_cast<double>(f0_deficit(ops[k], f));
+        }
+        accumulate(r.v, nr);
+      }
     }
     rows_[static_cast<std::size_t>(z - 1) * (d_.ny - 2) + static_cast<std::size_t>(y - 1)] = r;
   }
