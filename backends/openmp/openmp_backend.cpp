@@ -193,6 +193,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // follow, so each chunk asks for the lines this many chunks ahead (measured: 2 lines gain
   // 15-25% on a 2-core AMD EPYC, docs/performance.md).
   static constexpr int kPrefetchChunks = 2;
+  // Streaming by position asks for the chunk this many busy chunks ahead (prefetch_shifted;
+  // measured on plant-128: 1 or 2 gain 20%, 4 less).
+  static constexpr int kAheadChunks = 2;
 
  public:
   CpuLatticeSolver(const LatticeGeometry& g, const std::vector<ChannelMaterials>& channels, int capacity,
@@ -224,6 +227,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       for (int k = 0; k < kMaxMaterials; ++k)
         if (ch.absorbs[k]) bits |= 1u << k;
       absorb_bits_.push_back(bits);
+      bool plain = true;  // totals are plain sums (no gains): measure_row's shorter loop
+      for (int k = 0; k < kMaxMaterials; ++k)
+        for (int p = 0; p < kPairs; ++p) plain = plain && ops[k].total_gain[p] == Real(0);
+      plain_totals_.push_back(plain);
     }
     classify_rows();
     // Padded layout: node x of a row sits at row * pitch_ + x + (kLine - 1), so x = 1 (the first
@@ -242,6 +249,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void reset(const std::vector<SystemSpec>& batch) override {
     if (static_cast<int>(batch.size()) > capacity_) throw std::logic_error("batch larger than solver capacity");
     active_ = static_cast<int>(batch.size());
+    shifted_ = !shift_edges_.empty() && time_block_option_ <= 1;
+    // streaming by position keeps the state in level 0; level 1 is set up when it ends (unshift)
+    const int live_levels = shifted_ ? 1 : levels();
     for (int s = 0; s < active_; ++s) {
       Slot& slot = slots_[static_cast<std::size_t>(s)];
       if (batch[s].channel < 0 || batch[s].channel >= static_cast<int>(ops_.size()))
@@ -253,8 +263,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         slot.totals.allocate(n_);
         slot.scratch.allocate(n_);
       }
-      fill(slot.state.data(), levels() * kQ * stride_, Store(0));
-      for (int level = 0; level < levels(); ++level) set_boundary(slot, level);
+      fill(slot.state.data(), live_levels * kQ * stride_, Store(0));
+      for (int level = 0; level < live_levels; ++level) set_boundary(slot, level);
       if (skip_dark_ && !in_place_) slot.lit.reset(d_, slot.spec.boundary);
       else slot.lit.light_all();
       const Real total = static_cast<Real>(boundary_total(slot.spec.boundary));
@@ -268,7 +278,6 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const double cache = static_cast<double>(host_last_level_cache_bytes());
     stream_ = kCanStream && !in_place_ &&
               (stores_ == StoreMode::Streaming || (stores_ == StoreMode::Auto && state_bytes > 2.0 * cache));
-    shifted_ = !shift_edges_.empty() && time_block_option_ <= 1;
     if (shifted_) {
       stream_ = false;
       time_block_ = 1;
@@ -717,6 +726,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         }
     const auto busy = chunk_class_.size() - static_cast<std::size_t>(std::count(chunk_class_.begin(), chunk_class_.end(), kEmptyChunk));
     sparse_ = 2 * busy < chunk_class_.size();
+    // ahead_[c]: the busy chunk kAheadChunks busy chunks after busy chunk c in row order (-1: none)
+    ahead_.assign(chunk_class_.size(), -1);
+    std::vector<std::int32_t> order;
+    for (std::size_t c = 0; c < chunk_class_.size(); ++c)
+      if (chunk_class_[c] != kEmptyChunk) order.push_back(static_cast<std::int32_t>(c));
+    for (std::size_t k = 0; k + kAheadChunks < order.size(); ++k)
+      ahead_[static_cast<std::size_t>(order[k])] = order[k + kAheadChunks];
   }
 
   // What a chunk of a row holds: no medium and no wood, medium but no wood, wood.
@@ -779,22 +795,43 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       Slot& slot = slots_[static_cast<std::size_t>(s)];
       Store* g = slot.buffer(0);
       const std::size_t n = shift_edges_.size();
+      const long long L = static_cast<long long>(stride_);
 #pragma omp parallel for schedule(static) num_threads(threads_)
       for (std::size_t k = 0; k < n; ++k) {
-        const auto& e = shift_edges_[k];
-        g[shifted_at(e.first, e.second)] = set ? static_cast<Store>(slot.spec.boundary[e.first]) : Store(0);
+        const EdgeRun& e = shift_edges_[k];
+        const Store v = set ? static_cast<Store>(slot.spec.boundary[e.m]) : Store(0);
+        Store* a = g + static_cast<long long>(e.m) * L;
+        long long p = e.q - offset_[e.m];
+        if (p < 0) p += L;
+        const long long head = std::min<long long>(e.length, L - p);  // up to the array's end
+        std::fill(a + p, a + p + head, v);
+        std::fill(a, a + (e.length - head), v);
       }
     }
   }
+  // The boundary-fed entries f_m(q) (q - c_m on the boundary) as runs of consecutive q per
+  // direction, so that inject writes the face rows as stretches, not value by value.
   void list_shift_edges() {
+    std::vector<std::pair<int, long long>> entries;
     for (int z = 1; z < d_.nz - 1; ++z)
       for (int y = 1; y < d_.ny - 1; ++y)
         for (int x = 1; x < d_.nx - 1; ++x) {
           if (x > 1 && x < d_.nx - 2 && y > 1 && y < d_.ny - 2 && z > 1 && z < d_.nz - 2) continue;
           for (int m = 1; m < kQ; ++m)
             if (d_.is_boundary(x - d3q19::cx(m), y - d3q19::cy(m), z - d3q19::cz(m)))
-              shift_edges_.emplace_back(m, state_index(x, y, z));
+              entries.emplace_back(m, state_index(x, y, z));
         }
+    std::sort(entries.begin(), entries.end());
+    for (const auto& [m, q] : entries) {
+      if (!shift_edges_.empty()) {
+        EdgeRun& last = shift_edges_.back();
+        if (last.m == m && last.q + last.length == q) {
+          ++last.length;
+          continue;
+        }
+      }
+      shift_edges_.push_back({m, q, 1});
+    }
   }
   // One collision of every chunk with medium, in place at f(now_)'s positions.
   void step_shifted() {
@@ -913,6 +950,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         }
       }
       set_boundary(slot, 0);
+      fill(slot.buffer(1), kQ * stride_, Store(0));  // left untouched by reset
+      set_boundary(slot, 1);
     }
     cur_ = 0;
   }
@@ -1042,6 +1081,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void measure_row(const Slot& slot, const Store* g, int y, int z) {
     const auto& ops = ops_[static_cast<std::size_t>(slot.spec.channel)];
     const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+    const bool plain = plain_totals_[static_cast<std::size_t>(slot.spec.channel)];
     const Real* prev = slot.totals.data();
     Real* next = const_cast<Real*>(slot.scratch.data());
     const std::size_t base = d_.index(0, y, z);
@@ -1090,9 +1130,14 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         mat[j] = mats[j];
       }
       for (int m = 1; m < kQ; ++m) {
+        const Store* fm = row_base[m] + x0;
+        if (plain) {  // gains 0: factors exactly 1, so the plain sum is the same bits
+#pragma omp simd
+          for (int j = 0; j < n; ++j) t[j] += static_cast<Real>(fm[j]);
+          continue;
+        }
         const int p = (m - 1) / 2;
         const Real g0 = ops[0].total_gain[p], g1 = ops[1].total_gain[p], g2 = ops[2].total_gain[p];
-        const Store* fm = row_base[m] + x0;
 #pragma omp simd
         for (int j = 0; j < n; ++j) {
           const Real gain = mat[j] == 0 ? g0 : (mat[j] == 1 ? g1 : g2);
@@ -1181,8 +1226,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[shifted_at(m, row + x)]);
     };
     const long long L = static_cast<long long>(stride_);
+    const std::size_t first = static_cast<std::size_t>(cls - chunk_class_.data());
     for (int c = 0; c < chunks_per_row_; ++c) {
       if (cls[c] == kEmptyChunk) continue;
+      prefetch_shifted(g, ahead_[first + static_cast<std::size_t>(c)]);
       const int x0 = 1 + c * kLine, x1 = std::min(x0 + kLine, nx - 1);
       Store* base[kQ];
       bool whole = true;
@@ -1209,6 +1256,24 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
             node(x, load, [&](int m, Real v) LBL_INLINE_LAMBDA { g[shifted_at(m, row + x)] = static_cast<Store>(v); });
         });
       }
+    }
+  }
+
+  // Asks for the lines of busy chunk `chunk` (a flat index into chunk_class_; -1: none) at the
+  // current positions: chunks with medium lie scattered over 19 arrays whose offsets differ,
+  // which the hardware prefetchers do not follow.
+  LBL_FORCEINLINE void prefetch_shifted(const Store* g, std::int32_t chunk) const {
+    if (chunk < 0) return;
+    const int r = chunk / chunks_per_row_, c = chunk % chunks_per_row_;
+    const long long L = static_cast<long long>(stride_);
+    const long long q = state_index(1 + c * kLine, 1 + r % (d_.ny - 2), 1 + r / (d_.ny - 2));
+    LBL_UNROLL
+    for (int m = 0; m < kQ; ++m) {
+      long long p = q - offset_[m];
+      if (p < 0) p += L;
+      const Store* a = g + static_cast<long long>(m) * L;
+      __builtin_prefetch(a + p, 1, 3);
+      __builtin_prefetch(a + std::min(p + kLine - 1, L - 1), 1, 3);
     }
   }
 
@@ -1497,6 +1562,8 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   int material_count_ = 1;
   std::vector<std::array<CollisionOp<Real>, kMaxMaterials>> ops_;  // per channel and material
   std::vector<unsigned> absorb_bits_;     // per channel: bit k set when material k absorbs
+  std::vector<std::int32_t> ahead_;        // per chunk: see classify_rows
+  std::vector<bool> plain_totals_;        // per channel: every material's total_gain is 0
   std::vector<std::uint8_t> row_mask_, row_empty_;
   std::vector<std::uint8_t> chunk_class_;  // per interior row, chunks_per_row_ entries (classify_rows)
   int chunks_per_row_ = 1;
@@ -1518,7 +1585,12 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   bool sparse_ = false;       // fewer than half the chunks hold medium (classify_rows)
   bool shifted_ = false;
   long long offset_[kQ] = {};  // position offsets of f(now_) (shift_offsets)
-  std::vector<std::pair<int, long long>> shift_edges_;  // (m, q): f_m(q) fed by a boundary node
+  struct EdgeRun {
+    int m;           // direction
+    long long q;     // state index of the first entry
+    int length = 1;  // entries f_m(q), f_m(q + 1), ...
+  };
+  std::vector<EdgeRun> shift_edges_;  // the entries f_m(q) fed by a boundary node
   bool swapped_ = false;   // in place: the last step was a swap-out step (odd steps since reset)
   std::vector<Edge> edges_in_, edges_out_;
 };
