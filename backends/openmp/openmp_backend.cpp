@@ -245,6 +245,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
 
   int capacity() const override { return capacity_; }
   int steps_per_pass() const override { return time_block_; }
+  bool streams_by_position() const override { return shifted_; }
+  double swept_fraction() const override {
+    if (!shifted_) return 1.0;
+    return std::min(1.0, static_cast<double>(busy_chunks_) * kLine / static_cast<double>(d_.interior_count()));
+  }
 
   void reset(const std::vector<SystemSpec>& batch) override {
     if (static_cast<int>(batch.size()) > capacity_) throw std::logic_error("batch larger than solver capacity");
@@ -726,6 +731,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         }
     const auto busy = chunk_class_.size() - static_cast<std::size_t>(std::count(chunk_class_.begin(), chunk_class_.end(), kEmptyChunk));
     sparse_ = 2 * busy < chunk_class_.size();
+    busy_chunks_ = busy;
     // ahead_[c]: the busy chunk kAheadChunks busy chunks after busy chunk c in row order (-1: none)
     ahead_.assign(chunk_class_.size(), -1);
     std::vector<std::int32_t> order;
@@ -1562,6 +1568,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   int material_count_ = 1;
   std::vector<std::array<CollisionOp<Real>, kMaxMaterials>> ops_;  // per channel and material
   std::vector<unsigned> absorb_bits_;     // per channel: bit k set when material k absorbs
+  std::size_t busy_chunks_ = 0;             // chunks that hold medium (classify_rows)
   std::vector<std::int32_t> ahead_;        // per chunk: see classify_rows
   std::vector<bool> plain_totals_;        // per channel: every material's total_gain is 0
   std::vector<std::uint8_t> row_mask_, row_empty_;

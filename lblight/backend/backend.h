@@ -138,6 +138,11 @@ class LatticeSolver {
   // SolverOptions::time_block), as chosen at the last reset: what `bench` divides the memory
   // traffic per update by.
   virtual int steps_per_pass() const { return 1; }
+  // Whether the last reset chose streaming by position (the CPU on sparse lattices,
+  // docs/performance.md): a step then reads and writes only the nodes of swept_fraction() of
+  // the interior, the chunks that hold medium, in one time level.
+  virtual bool streams_by_position() const { return false; }
+  virtual double swept_fraction() const { return 1.0; }
 
   // The other parts, or nullptr where this solver does not offer them.
   virtual KrylovVectors* krylov_vectors() { return nullptr; }

@@ -84,8 +84,11 @@ ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& 
   run.updates_per_second =
       static_cast<double>(lattice.dims.interior_count()) * run.steps * systems / std::max(run.seconds, 1e-9);
   run.steps_per_pass = solver->steps_per_pass();
-  run.state_bytes = (layout == StateLayout::InPlace ? 1.0 : 2.0) * 19.0 * static_cast<double>(lattice.dims.count()) *
-                    systems * bytes_per_value(precision);
+  run.by_position = solver->streams_by_position();
+  run.swept_fraction = solver->swept_fraction();
+  const bool one_level = layout == StateLayout::InPlace || run.by_position;
+  run.state_bytes = (one_level ? 1.0 : 2.0) * 19.0 * static_cast<double>(lattice.dims.count()) * systems *
+                    bytes_per_value(precision);
   return run;
 }
 

@@ -23,6 +23,8 @@ struct ThroughputRun {
   double updates_per_second = 0;  // per system (one channel of one solution)
   double state_bytes = 0;         // every system's state (both time levels, or the one in place)
   int steps_per_pass = 1;         // the solver's temporal blocking depth (SolverOptions::time_block)
+  bool by_position = false;       // streaming by position (LatticeSolver::streams_by_position)
+  double swept_fraction = 1.0;    // of the interior nodes, those a step reads and writes
 };
 
 // Times `steps` steps of `systems` systems (suns along lattice directions 1, 2, ...) on `lattice`
