@@ -18,7 +18,7 @@
 // so rows still run in parallel, and every node sees the same arithmetic on the same inputs: the
 // same bits as two levels. Two surface passes keep the fixed boundary exact (edges_in_, edges_out_).
 //
-// On a sparse lattice (fewer than half its chunks hold medium, as a plant's) the two-level state
+// On a sparse lattice (fewer than 3/4 of its chunks hold medium, as a plant's) the two-level state
 // streams by position instead (shift_offsets): values move with the array offsets, only the
 // chunks with medium are touched, and the first operation that needs the natural layout (a
 // written state, the Krylov vectors) rotates it back (unshift). Rows the light has not reached
@@ -730,7 +730,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
                        static_cast<std::size_t>(c)] = k;
         }
     const auto busy = chunk_class_.size() - static_cast<std::size_t>(std::count(chunk_class_.begin(), chunk_class_.end(), kEmptyChunk));
-    sparse_ = 2 * busy < chunk_class_.size();
+    // streaming by position pays below about 3/4 of the chunks busy (measured: forest and cloud
+    // bakes at 0.53-0.71 gain 16-26%, a lattice full of medium loses 8%; docs/performance.md)
+    sparse_ = 4 * busy < 3 * chunk_class_.size();
     busy_chunks_ = busy;
     // ahead_[c]: the busy chunk kAheadChunks busy chunks after busy chunk c in row order (-1: none)
     ahead_.assign(chunk_class_.size(), -1);
@@ -1589,7 +1591,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   // Streaming by position (see shift_offsets): chosen at reset for sparse lattices, left for
   // the two-level pull at the first operation that needs the natural layout (unshift).
   bool shift_option_ = true;  // SolverOptions::shift_streaming
-  bool sparse_ = false;       // fewer than half the chunks hold medium (classify_rows)
+  bool sparse_ = false;       // fewer than 3/4 of the chunks hold medium (classify_rows)
   bool shifted_ = false;
   long long offset_[kQ] = {};  // position offsets of f(now_) (shift_offsets)
   struct EdgeRun {

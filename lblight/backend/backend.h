@@ -98,7 +98,7 @@ struct SolverOptions {
   // their 0 instead of being swept (the same bits: backends/openmp/lit_spans.h). false sweeps
   // everything, to measure what skipping saves. GPU backends ignore it.
   bool skip_dark = true;
-  // CPU: on a sparse lattice (fewer than half its chunks hold medium) keep direction m's values at
+  // CPU: on a sparse lattice (fewer than 3/4 of its chunks hold medium) keep direction m's values at
   // positions that move by c_m each step, so that streaming costs nothing and a step touches only
   // the nodes with medium and the boundary-fed entries; the same bits (backends/openmp,
   // docs/performance.md). false always sweeps every row. GPU backends ignore it.
