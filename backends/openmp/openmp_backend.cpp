@@ -1273,15 +1273,12 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   LBL_FORCEINLINE void prefetch_shifted(const Store* g, std::int32_t chunk) const {
     if (chunk < 0) return;
     const int r = chunk / chunks_per_row_, c = chunk % chunks_per_row_;
-    const long long L = static_cast<long long>(stride_);
     const long long q = state_index(1 + c * kLine, 1 + r % (d_.ny - 2), 1 + r / (d_.ny - 2));
     LBL_UNROLL
     for (int m = 0; m < kQ; ++m) {
-      long long p = q - offset_[m];
-      if (p < 0) p += L;
-      const Store* a = g + static_cast<long long>(m) * L;
-      __builtin_prefetch(a + p, 1, 3);
-      __builtin_prefetch(a + std::min(p + kLine - 1, L - 1), 1, 3);
+      const Store* a = g + shifted_at(m, q);
+      __builtin_prefetch(a, 1, 3);
+      __builtin_prefetch(a + kLine - 1, 1, 3);  // a hint: past an array's end it is harmless
     }
   }
 

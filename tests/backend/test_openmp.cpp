@@ -256,7 +256,7 @@ TEST_CASE("Streaming by position on a sparse lattice gives the same bits as the 
           o.shift_streaming = shift;
           auto s = backend->create(g, channels, o);
           s->reset(batch);
-          // chosen where asked (fewer than half the chunks hold medium), and said so to bench
+          // chosen where asked (fewer than 3/4 of the chunks hold medium), and said so to bench
           CHECK(s->streams_by_position() == shift);
           CHECK(s->swept_fraction() == Approx(shift ? 0.25 : 1.0).margin(shift ? 0.25 : 0.0));
           std::vector<std::vector<double>> out;
