@@ -1626,7 +1626,7 @@ class OpenMpBackend final : public Backend {
   // Measured in docs/performance.md ("In-place streaming"): once two levels exceed the cache, in
   // place ran 1.1-1.6x faster than two levels with temporal blocking in float32 (the stores land
   // on lines the same node just read); float16 ran slower in place (its conversions by chunk).
-  bool prefers_in_place(const Dims& d, Precision p) const override {
+  bool prefers_in_place(const Dims& d, Precision p, bool) const override {
     const double cache = static_cast<double>(host_last_level_cache_bytes());
     return p != Precision::Float16 && cache > 0 && static_cast<double>(bytes_per_system(d, p)) > 2.0 * cache;
   }

@@ -214,8 +214,10 @@ class Backend {
   // The same with StateLayout::InPlace; 0 where the backend does not offer it.
   virtual std::size_t bytes_per_system_in_place(const Dims&, Precision) const { return 0; }
   // True where the backend runs such a lattice faster in place than with two levels (measured:
-  // docs/performance.md), so a bake that may choose does.
-  virtual bool prefers_in_place(const Dims&, Precision) const { return false; }
+  // docs/performance.md), so a bake that may choose does. rewrites_state: the solve rewrites the
+  // state between steps (Krylov vectors, DSA corrections), which a backend may do in the natural
+  // layout only.
+  virtual bool prefers_in_place(const Dims&, Precision, bool /*rewrites_state*/) const { return false; }
   virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;
   virtual std::size_t available_bytes() const = 0;
   // Systems a batch should hold when memory allows: the CPU gains nothing from more than one

@@ -378,7 +378,9 @@ StateLayout state_layout(const ModelPlan& mp, const Backend& backend, const Bake
   const int whole = std::min(wanted_systems(mp, backend, opt),
                              std::max(1, std::min(static_cast<int>(mp.channels.size()), static_cast<int>(mp.systems()))));
   if (fit >= 0 && fit < whole) return StateLayout::InPlace;
-  return backend.prefers_in_place(mp.lattice.dims, mp.steps.precision) ? StateLayout::InPlace : StateLayout::TwoLevels;
+  const bool rewrites = mp.steps.method != SolverMethod::Plain;
+  return backend.prefers_in_place(mp.lattice.dims, mp.steps.precision, rewrites) ? StateLayout::InPlace
+                                                                                 : StateLayout::TwoLevels;
 }
 
 // Krylov solves take one system at a time (their vectors belong to system 0).

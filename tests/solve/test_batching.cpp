@@ -16,12 +16,12 @@ namespace {
 class PlanningBackend final : public Backend {
  public:
   // in_place: bytes per system with the state in place (0: not offered)
-  // faster: prefers_in_place
+  // faster: prefers_in_place for solves that do not rewrite the state (as the CUDA backend)
   PlanningBackend(int preferred, std::size_t available, std::size_t per_system = 1000, std::size_t in_place = 0,
                   bool faster = false)
       : preferred_(preferred), available_(available), per_system_(per_system), in_place_(in_place), faster_(faster) {}
   std::size_t bytes_per_system_in_place(const Dims&, Precision) const override { return in_place_; }
-  bool prefers_in_place(const Dims&, Precision) const override { return faster_; }
+  bool prefers_in_place(const Dims&, Precision, bool rewrites_state) const override { return faster_ && !rewrites_state; }
   std::string name() const override { return "planning"; }
   std::string description() const override { return "batch planning only"; }
   bool supports(Precision) const override { return true; }
@@ -94,6 +94,13 @@ TEST_CASE("state_layout: two levels while a whole solution fits, in place when o
   // memory unknown: two levels, unless the backend runs the lattice faster in place
   CHECK(state_layout(f.mp, PlanningBackend(3, 0, 1000, 500), opt) == StateLayout::TwoLevels);
   CHECK(state_layout(f.mp, PlanningBackend(3, 0, 1000, 500, true), opt) == StateLayout::InPlace);
+  CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500, true), opt) == StateLayout::InPlace);
+  // ... but not for a solve that rewrites the state between steps
+  f.mp.steps.method = SolverMethod::BiCGStab;
+  CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500, true), opt) == StateLayout::TwoLevels);
+  f.mp.steps.method = SolverMethod::Dsa;
+  CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500, true), opt) == StateLayout::TwoLevels);
+  f.mp.steps.method = SolverMethod::Plain;
   // as the scene or --state asks
   f.mp.steps.state = StateLayout::InPlace;
   CHECK(state_layout(f.mp, PlanningBackend(3, 10000, 1000, 500), opt) == StateLayout::InPlace);
