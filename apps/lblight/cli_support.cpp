@@ -13,6 +13,9 @@
 #include <thread>
 
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "lblight/core/error.h"
 
@@ -93,12 +96,20 @@ void check_output_file(const std::filesystem::path& input, const std::filesystem
 
 void setup_logging(int verbosity) {
   auto logger = spdlog::stderr_color_mt("lblight");
-  logger->set_pattern("[%H:%M:%S] %^%l%$: %v");
+  // -v: milliseconds, to read where a short run's time goes from the log alone
+  logger->set_pattern(verbosity > 0 ? "[%H:%M:%S.%e] %^%l%$: %v" : "[%H:%M:%S] %^%l%$: %v");
   spdlog::set_default_logger(logger);
   spdlog::set_level(verbosity < 0   ? spdlog::level::warn
                     : verbosity == 0 ? spdlog::level::info
                     : verbosity == 1 ? spdlog::level::debug
                                      : spdlog::level::trace);
+}
+
+void keep_freed_host_memory() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 64 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
 }
 
 std::string Table::str() const {

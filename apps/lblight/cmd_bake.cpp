@@ -68,7 +68,11 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
       return args.solve.make_backend("bake");
     });
   BakePlan plan = make_plan(scene, ov, args.solve.run_context());
+  const double planned = seconds_since(t0);
   auto backend = starting.valid() ? starting.get() : args.solve.make_backend("bake");
+  spdlog::debug("start-up: scene loaded and planned (models voxelised) in {:.3f} s, backend ready at {:.3f} s",
+                planned, seconds_since(t0));
+  if (!backend->occupies_host_cores()) keep_freed_host_memory();
   if (!backend->supports(plan.precision))
     throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(plan.precision) +
                       "; allowed: float32, float64 or float16 on cpu (float16 where the compiler has _Float16), float32 or float16 on cuda",
