@@ -3,7 +3,7 @@
 # archive, for a GPU machine that has the NVIDIA driver but not Debian's packages (a CUDA
 # container image with no OpenVDB, TBB or spdlog, and no network to install them).
 #   usage: scripts/device-bundle.sh [BUILD_DIR] [OUT_DIR]    (defaults: build, .device-bundle)
-# Produces OUT_DIR/lblight-bundle.tar.xz (~15 MB). On the GPU machine, from the repository root:
+# Produces OUT_DIR/lblight-bundle.tar.xz (~17 MB). On the GPU machine, from the repository root:
 #   python3 -c 'import tarfile; tarfile.open(".device-bundle/lblight-bundle.tar.xz").extractall("/tmp")'
 #   LBLIGHT_BUNDLE=/tmp/lblight-bundle scripts/gpu-acceptance.sh /tmp/acceptance
 # bin/ holds wrappers that run the programs with the bundled libraries: with the machine's own

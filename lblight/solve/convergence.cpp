@@ -81,14 +81,21 @@ double ConvergenceMonitor::tail_estimate(double CheckPoint::*change, double floo
   // the precision allows; the rounding floor (record()) says how far that is from the fixed point.
   // An accelerated iteration must have shown its contraction first (its cycles are few, and a
   // stagnating one also makes small changes).
-  if (now <= round_off_ && !(accelerated_ && settled_q_ < 0)) return std::max({round_off_, floor, rounding_floor()});
+  if (now <= round_off_ && !(accelerated_ && settled_q_ < 0)) return std::max({round_off_, floor, rounding_floor(interval)});
   return kUnknown;  // not contracting yet (light still spreading) or the ratio is still moving
 }
 
-double ConvergenceMonitor::rounding_floor() const {
-  // 5 u per step, amplified by 1 / (1 - q) of the last settled contraction (header comment).
+double ConvergenceMonitor::rounding_floor(int interval) const {
   const double q = settled_q_ >= 0 ? settled_q_ : q_hint_;
-  return q >= 0 ? 5.0 * unit_ / std::max(1e-12, 1.0 - q) : 0.0;
+  if (q < 0) return 0.0;
+  const double gap = std::max(1e-12, 1.0 - q);
+  // 5 u per step, amplified by 1 / (1 - q) of the last settled contraction (header comment).
+  if (!half_storage_) return 5.0 * unit_ / gap;
+  // float16 storage: its rounding, incoherent from step to step (docs/accuracy.md, "float16
+  // storage against float32"); and a mode contracting by q whose changes, up to the noise level
+  // per check, cannot be told from rounding: its tail, doubled as a settled tail is.
+  const double r = std::pow(q, std::max(1, interval));
+  return std::max(unit_ / std::sqrt(gap), 2.0 * round_off_ * r / std::max(1e-12, 1.0 - r));
 }
 
 void ConvergenceMonitor::record(int step, int interval, double seconds, const Residual& r) {

@@ -10,9 +10,13 @@
 // slowly to show in the changes. Once stalled at the noise level, it is also never below the
 // rounding floor of the storage precision: each step rounds at a few units u, and the
 // iteration's fixed point moves by that amount times 1 / (1 - q), q the per-step contraction
-// (measured: float32 on a 22^3 dense cube stalls at 1.3e-5 = 200 u with 1/(1-q) = 51). While
-// the changes still shrink with a settled ratio they are signal and the tail estimate holds
-// (a procedural cloud's thin fringe: changes of 1e-7 per check, true error still falling).
+// (measured: float32 on a 22^3 dense cube stalls at 1.3e-5 = 200 u with 1/(1-q) = 51). float16
+// storage with float32 arithmetic rounds only what it stores, and those errors do not add up
+// coherently (measured 1.6 u on a 48^3 dense cube where 5 u / (1 - q) is 800 u): its floor is
+// u / sqrt(1 - q), or the tail of a slow mode whose changes hide below the checks' noise level,
+// whichever is larger (rounding_floor). While the changes still shrink with a settled ratio they
+// are signal and the tail estimate holds (a procedural cloud's thin fringe: changes of 1e-7 per
+// check, true error still falling).
 #pragma once
 
 #include <limits>
@@ -40,7 +44,7 @@ class ConvergenceMonitor {
   // rounding floor until the iteration shows its own; after a Krylov solve the verification
   // checks see only noise-level changes and have nothing else to go on. < 0: none.
   explicit ConvergenceMonitor(Precision p, double q_hint = -1)
-      : round_off_(round_off_for(p)), unit_(unit_roundoff(p)), q_hint_(q_hint) {}
+      : round_off_(round_off_for(p)), unit_(unit_roundoff(p)), half_storage_(p == Precision::Float16), q_hint_(q_hint) {}
 
   // For an accelerated iteration (solve/dsa.h), whose changes per cycle shrink fast but with
   // ratios that wander between several modes: once the last three ratios are all below
@@ -68,9 +72,10 @@ class ConvergenceMonitor {
  private:
   // ratio: the settled contraction per check, when the estimate found one.
   double tail_estimate(double CheckPoint::*change, double floor, double* ratio) const;
-  double rounding_floor() const;
+  double rounding_floor(int interval) const;  // interval: steps between the last two checks
 
   double round_off_, unit_;
+  bool half_storage_;  // float16 storage, float32 arithmetic
   double q_hint_ = -1;
   bool accelerated_ = false;
   double settled_q_ = -1;  // last settled contraction per step (-1: none yet)

@@ -101,6 +101,28 @@ TEST_CASE("The estimate never drops below the f_0 reservoir deficit or the round
   CHECK(f.error_estimate() >= 5 * 6e-8 / (1 - 0.99) * 0.99);
 }
 
+TEST_CASE("float16 storage's rounding floor: incoherent rounding or a slow mode hidden in the noise", "[convergence]") {
+  // q = 0.98 per step settled over checks 16 steps apart, then irregular changes at float16's
+  // noise level (2e-3 per check). Before: 5 u / (1 - q) = 0.12, which no float16 bake below a
+  // tolerance of 0.1 could pass, against a measured 1.6 u (8e-4) from float32's steady state.
+  const auto stalled = [](double q, int interval) {
+    ConvergenceMonitor f(Precision::Float16);
+    double c = 0.2;
+    const double r = std::pow(q, interval);
+    int step = 0;
+    for (int k = 0; k < 8; ++k, c *= r) f.record(step += interval, interval, 0, change(c));
+    f.record(step += interval, interval, 0, change(1.5e-3));
+    f.record(step += interval, interval, 0, change(0.4e-3));
+    return f.error_estimate();
+  };
+  const double u = 4.9e-4, r16 = std::pow(0.98, 16);
+  // the hidden mode's tail: 2 x 2e-3 x r / (1 - r) = 1.1e-2 (above u / sqrt(1 - q) = 3.5e-3)
+  CHECK(stalled(0.98, 16) == Approx(2 * 2e-3 * r16 / (1 - r16)).epsilon(0.05));
+  CHECK(stalled(0.98, 16) < 0.1 * 5 * u / (1 - 0.98));
+  // checks far apart: the hidden mode's tail is 6e-4, the storage's rounding u / sqrt(1 - q) = 4.9e-3
+  CHECK(stalled(0.99, 200) == Approx(u / std::sqrt(1 - 0.99)).epsilon(0.05));
+}
+
 TEST_CASE("Small changes that still shrink with a settled ratio are signal, not rounding noise", "[convergence]") {
   // A slow mode (thin cloud fringe): changes of ~1e-7 per check, below float32's noise level,
   // contracting by 0.9976 per check. The tail (2 c r / (1 - r) ~ 1e-4) is the estimate, not the
