@@ -675,20 +675,16 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
   }
 
-  // f_m(q) = g_m(q - c_m): the pre-collision values of node q (swapped: q's own slots opposite(m)).
+  // Where f_m(q), node q's pre-collision value in direction m, is stored in the state: g_m(q - c_m)
+  // pulled, q's own slot opposite(m) swapped, the direction array's moving position by position.
+  long long pre_collision_at(int m, long long q) const {
+    if (shifted_) return shifted_at(m, q);
+    const long long L = static_cast<long long>(stride_);
+    if (swapped_) return static_cast<long long>(d3q19::opposite(m)) * L + q;
+    return static_cast<long long>(m) * L + q - d3q19::cx(m) - d3q19::cy(m) * pitch_ - d3q19::cz(m) * plane_;
+  }
   void gather(const Store* g, long long q, Real (&f)[kQ]) const {
-    if (shifted_) {
-      for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[shifted_at(m, q)]);
-      return;
-    }
-    if (swapped_) {
-      for (int m = 0; m < kQ; ++m)
-        f[m] = static_cast<Real>(g[static_cast<std::size_t>(d3q19::opposite(m)) * stride_ + static_cast<std::size_t>(q)]);
-      return;
-    }
-    for (int m = 0; m < kQ; ++m)
-      f[m] = static_cast<Real>(g[static_cast<std::size_t>(m) * stride_ +
-                                 static_cast<std::size_t>(q - d3q19::cx(m) - d3q19::cy(m) * pitch_ - d3q19::cz(m) * plane_)]);
+    for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(g[pre_collision_at(m, q)]);
   }
 
   // Which materials each interior row holds; rows of one material run the plain collision,
@@ -1100,17 +1096,9 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     bool whole = true;
     const long long L = static_cast<long long>(stride_), row = state_index(0, y, z);
     for (int m = 0; m < kQ; ++m) {
-      if (shifted_) {
-        long long p = row - offset_[m];
-        if (p < 0) p += L;
-        whole = whole && p + nx <= L;
-        row_base[m] = g + static_cast<long long>(m) * L + p;
-      } else if (swapped_) {
-        row_base[m] = g + static_cast<long long>(d3q19::opposite(m)) * L + row;
-      } else {
-        row_base[m] = g + static_cast<long long>(m) * L + row - d3q19::cx(m) - d3q19::cy(m) * pitch_ -
-                      d3q19::cz(m) * plane_;
-      }
+      const long long at = pre_collision_at(m, row);
+      whole = whole && (!shifted_ || at - static_cast<long long>(m) * L + nx <= L);
+      row_base[m] = g + at;
     }
     if (!whole) {
       for (int x = 1; x < nx - 1; ++x) {
