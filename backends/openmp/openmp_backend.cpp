@@ -232,12 +232,12 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         for (int p = 0; p < kPairs; ++p) plain = plain && ops[k].total_gain[p] == Real(0);
       plain_totals_.push_back(plain);
     }
-    classify_rows();
     // Padded layout: node x of a row sits at row * pitch_ + x + (kLine - 1), so x = 1 (the first
     // interior node) starts a cache line.
     pitch_ = (d_.nx + kLine - 1 + kLine - 1) / kLine * kLine;
     plane_ = pitch_ * d_.ny;
     stride_ = padded_stride(static_cast<std::size_t>(plane_ * d_.nz));
+    classify_rows();  // after the layout: ahead_ holds state indices
     slots_.resize(static_cast<std::size_t>(capacity_));
     if (in_place_) list_edges();
     if (shift_option_ && sparse_ && kCanStream && !in_place_) list_shift_edges();
@@ -730,13 +730,18 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     // bakes at 0.53-0.71 gain 16-26%, a lattice full of medium loses 8%; docs/performance.md)
     sparse_ = 4 * busy < 3 * chunk_class_.size();
     busy_chunks_ = busy;
-    // ahead_[c]: the busy chunk kAheadChunks busy chunks after busy chunk c in row order (-1: none)
+    // ahead_[c]: the state index of the first node of the busy chunk kAheadChunks busy chunks
+    // after busy chunk c in row order (-1: none)
     ahead_.assign(chunk_class_.size(), -1);
-    std::vector<std::int32_t> order;
+    std::vector<std::size_t> order;
     for (std::size_t c = 0; c < chunk_class_.size(); ++c)
-      if (chunk_class_[c] != kEmptyChunk) order.push_back(static_cast<std::int32_t>(c));
-    for (std::size_t k = 0; k + kAheadChunks < order.size(); ++k)
-      ahead_[static_cast<std::size_t>(order[k])] = order[k + kAheadChunks];
+      if (chunk_class_[c] != kEmptyChunk) order.push_back(c);
+    const auto first_node = [&](std::size_t chunk) {
+      const int r = static_cast<int>(chunk / static_cast<std::size_t>(chunks_per_row_)),
+                c = static_cast<int>(chunk % static_cast<std::size_t>(chunks_per_row_));
+      return state_index(1 + c * kLine, 1 + r % rows_y, 1 + r / rows_y);
+    };
+    for (std::size_t k = 0; k + kAheadChunks < order.size(); ++k) ahead_[order[k]] = first_node(order[k + kAheadChunks]);
   }
 
   // What a chunk of a row holds: no medium and no wood, medium but no wood, wood.
@@ -1255,13 +1260,11 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     }
   }
 
-  // Asks for the lines of busy chunk `chunk` (a flat index into chunk_class_; -1: none) at the
-  // current positions: chunks with medium lie scattered over 19 arrays whose offsets differ,
-  // which the hardware prefetchers do not follow.
-  LBL_FORCEINLINE void prefetch_shifted(const Store* g, std::int32_t chunk) const {
-    if (chunk < 0) return;
-    const int r = chunk / chunks_per_row_, c = chunk % chunks_per_row_;
-    const long long q = state_index(1 + c * kLine, 1 + r % (d_.ny - 2), 1 + r / (d_.ny - 2));
+  // Asks for the lines of the busy chunk whose first node is q (ahead_; -1: none) at the current
+  // positions: chunks with medium lie scattered over 19 arrays whose offsets differ, which the
+  // hardware prefetchers do not follow.
+  LBL_FORCEINLINE void prefetch_shifted(const Store* g, long long q) const {
+    if (q < 0) return;
     LBL_UNROLL
     for (int m = 0; m < kQ; ++m) {
       const Store* a = g + shifted_at(m, q);
@@ -1556,7 +1559,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   std::vector<std::array<CollisionOp<Real>, kMaxMaterials>> ops_;  // per channel and material
   std::vector<unsigned> absorb_bits_;     // per channel: bit k set when material k absorbs
   std::size_t busy_chunks_ = 0;             // chunks that hold medium (classify_rows)
-  std::vector<std::int32_t> ahead_;        // per chunk: see classify_rows
+  std::vector<long long> ahead_;           // per chunk: see classify_rows
   std::vector<bool> plain_totals_;        // per channel: every material's total_gain is 0
   std::vector<std::uint8_t> row_mask_, row_empty_;
   std::vector<std::uint8_t> chunk_class_;  // per interior row, chunks_per_row_ entries (classify_rows)
