@@ -14,9 +14,10 @@
 // storage with float32 arithmetic rounds only what it stores, and those errors do not add up
 // coherently (measured 1.6 u on a 48^3 dense cube where 5 u / (1 - q) is 800 u): its floor is
 // u / sqrt(1 - q), or the tail of a slow mode whose changes hide below the checks' noise level,
-// whichever is larger (rounding_floor). While the changes still shrink with a settled ratio they
-// are signal and the tail estimate holds (a procedural cloud's thin fringe: changes of 1e-7 per
-// check, true error still falling).
+// whichever is larger (rounding_floor); and float16 counts as stalled only once its changes
+// below the noise level stop falling (a transient's signal can be that small). While the changes
+// still shrink with a settled ratio they are signal and the tail estimate holds (a procedural
+// cloud's thin fringe: changes of 1e-7 per check, true error still falling).
 #pragma once
 
 #include <limits>
@@ -73,6 +74,10 @@ class ConvergenceMonitor {
   // ratio: the settled contraction per check, when the estimate found one.
   double tail_estimate(double CheckPoint::*change, double floor, double* ratio) const;
   double rounding_floor(int interval) const;  // interval: steps between the last two checks
+  // The trailing changes (equal intervals) no longer fall: fitted ratio per check at least
+  // kStalledRatio over the last up to 6, or one of them 0; false with fewer than 4.
+  static bool changes_stopped_falling(const std::vector<double>& ys);
+  static constexpr double kStalledRatio = 0.8;
 
   double round_off_, unit_;
   bool half_storage_;  // float16 storage, float32 arithmetic
