@@ -40,7 +40,7 @@ void SolveOptions::add_plan_options(CLI::App& cmd) {
                  "the same fixed point) or dsa (LB steps corrected by a multigrid diffusion solve: thick "
                  "scattering media, docs/accuracy.md); bicgstab and dsa need --iterations auto (default: the scene's)")
       ->check(CLI::IsMember({"plain", "bicgstab", "dsa"}));
-  cmd.add_option("--precision", precision, "Lattice storage: float32, float64 (cpu) or float16 (cuda)")
+  cmd.add_option("--precision", precision, "Lattice storage: float32, float64 (cpu only) or float16 (arithmetic in float32; docs/accuracy.md)")
       ->check(CLI::IsMember({"float32", "float64", "float16"}));
   cmd.add_option("--state", state,
                  "Lattice state in memory: two-levels (two copies, needed for the CPU's temporal blocking), "

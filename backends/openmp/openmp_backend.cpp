@@ -240,7 +240,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     classify_rows();  // after the layout: ahead_ holds state indices
     slots_.resize(static_cast<std::size_t>(capacity_));
     if (in_place_) list_edges();
-    if (shift_option_ && sparse_ && kCanStream && !in_place_) list_shift_edges();
+    if (shift_option_ && sparse_ && !in_place_) list_shift_edges();
   }
 
   int capacity() const override { return capacity_; }
@@ -1240,7 +1240,29 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         whole = whole && p + (x1 - x0) <= L;
         base[m] = g + static_cast<long long>(m) * L + p - x0;
       }
-      if (whole) {
+      if constexpr (!kCanStream) {  // 16-bit storage: the chunk converted through staged_chunk
+        const int count = x1 - x0;
+        if (whole && count == kLine) {
+          pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
+            staged_chunk(
+                x0, x1 - 1, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(base[m] + x0, stage); },
+                [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, base[m] + x0); }, node);
+          });
+        } else {
+          pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
+            staged_chunk(
+                x0, x1 - 1,
+                [&](int m, Real* stage) LBL_INLINE_LAMBDA {
+                  for (int l = 0; l < kLine; ++l)
+                    stage[l] = l < count ? static_cast<Real>(g[shifted_at(m, row + x0 + l)]) : Real(0);
+                },
+                [&](int m, const Real* post) LBL_INLINE_LAMBDA {
+                  for (int l = 0; l < count; ++l) g[shifted_at(m, row + x0 + l)] = static_cast<Store>(post[l]);
+                },
+                node);
+          });
+        }
+      } else if (whole) {
         auto near = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
           LBL_UNROLL
           for (int m = 0; m < kQ; ++m) f[m] = static_cast<Real>(base[m][x]);

@@ -236,7 +236,7 @@ TEST_CASE("Streaming by position on a sparse lattice gives the same bits as the 
   for (int z = 1; z < d.nz - 1; ++z)
     for (int y = 1; y < d.ny - 1; ++y)
       for (int x = 1; x < d.nx - 1; ++x)
-        if (x < 18 || x > 30 || y < 4 || y > 9 || z < 3 || z > 8) {
+        if (x < 18 || x > 34 || y < 4 || y > 9 || z < 3 || z > 8) {  // to the row's end: a partial last chunk
           g.density[d.index(x, y, z)] = 0.0f;
           g.material[d.index(x, y, z)] = 0;
         }
@@ -244,11 +244,12 @@ TEST_CASE("Streaming by position on a sparse lattice gives the same bits as the 
   const std::vector<ChannelMaterials> channels = {channel({0.1, 0.8, 0.6}, true, {0.3, 0.5, -1.0}, false),
                                                   channel({0.02, 0.9, 0.3}, false, {0.3, 0.5, -1.0}, false)};
   const auto backend = cpu_backend(2);
-  for (Precision p : {Precision::Float32, Precision::Float64})
+  for (Precision p : {Precision::Float32, Precision::Float64, Precision::Float16})
     for (const std::vector<SystemSpec>& batch :
          {std::vector<SystemSpec>{system_for(0, base(0)), system_for(1, base(1))},
           std::vector<SystemSpec>{system_for(0, base(6)), system_for(1, base(11))}, std::vector<SystemSpec>{system_for(1, sun)}})
       for (int leave : {0, 1}) {  // 0: a written state, 1: a Krylov vector
+        if (!backend->supports(p)) continue;  // float16 needs the compiler's _Float16
         const auto run = [&](bool shift) {
           SolverOptions o;
           o.precision = p;
@@ -258,7 +259,7 @@ TEST_CASE("Streaming by position on a sparse lattice gives the same bits as the 
           s->reset(batch);
           // chosen where asked (fewer than 3/4 of the chunks hold medium), and said so to bench
           CHECK(s->streams_by_position() == shift);
-          CHECK(s->swept_fraction() == Approx(shift ? 0.25 : 1.0).margin(shift ? 0.25 : 0.0));
+          CHECK(s->swept_fraction() == Approx(shift ? 0.3 : 1.0).margin(shift ? 0.2 : 0.0));
           std::vector<std::vector<double>> out;
           std::vector<Residual> r;
           for (int chunk : {1, 2, 5, 9, 20, 7}) {
