@@ -396,7 +396,7 @@ class CudaBackend final : public Backend {
   // Measured on an H200 (docs/performance.md, "Solver throughput, GPU"): in place ran 10-44% faster
   // than two levels at every size, precision and batch, with the same bits. A solve that rewrites
   // the state between steps keeps two levels: in place turns the layout back through the host.
-  bool prefers_in_place(const Dims&, Precision, bool rewrites_state) const override { return !rewrites_state; }
+  bool prefers_in_place(const LatticeGeometry&, Precision, bool rewrites_state) const override { return !rewrites_state; }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override {
     std::size_t free_bytes = 0, total = 0;

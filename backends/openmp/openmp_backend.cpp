@@ -173,6 +173,39 @@ inline void reals_to_halves(const Real* in, Half* out) {
   for (int i = 0; i < N; ++i) out[i] = static_cast<Half>(in[i]);
 }
 
+// The nodes [lo, hi] of chunk c of a row of nx nodes, as the sweeps cut rows into chunks of `line`
+// nodes: whole lines from x = 1, the tail a whole line shifted back to end at nx - 2 (the
+// in-place tail is a part of that), a row shorter than a line one chunk.
+inline std::pair<int, int> chunk_nodes(int c, int nx, int line) {
+  int lo = 1 + c * line;
+  const int hi = std::min(lo + line - 1, nx - 2);
+  if (hi - lo + 1 < line && nx - 2 >= line) lo = nx - 1 - line;
+  return {lo, hi};
+}
+
+// Streaming by position pays below about 3/4 of the chunks busy (measured: forest and cloud
+// bakes at 0.53-0.71 gain 16-26%, a lattice full of medium loses 8%; docs/performance.md).
+inline bool mostly_idle(std::size_t busy_chunks, std::size_t chunks) { return 4 * busy_chunks < 3 * chunks; }
+
+// Whether a solver with chunks of `line` nodes would stream g by position (classify_rows).
+bool position_streaming_pays(const LatticeGeometry& g, int line) {
+  const Dims& d = g.dims;
+  const int chunks_per_row = (d.nx - 2 + line - 1) / line;
+  std::size_t busy = 0, chunks = 0;
+  for (int z = 1; z < d.nz - 1; ++z)
+    for (int y = 1; y < d.ny - 1; ++y)
+      for (int c = 0; c < chunks_per_row; ++c, ++chunks) {
+        const auto [lo, hi] = chunk_nodes(c, d.nx, line);
+        bool medium = false;  // as classify_rows: density, or a wood node
+        for (int x = lo; x <= hi && !medium; ++x) {
+          const std::size_t i = d.index(x, y, z);
+          medium = g.density[i] != 0.0f || g.material[i] == kMaterialWood;
+        }
+        busy += medium ? 1 : 0;
+      }
+  return mostly_idle(busy, chunks);
+}
+
 // How a sweep addresses the state (see the top of this file).
 enum class Access {
   Pull,     // two levels: gather from src, store to the node's own entries in dst
@@ -704,18 +737,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           if (density_[i] != 0.0f) row_empty_[r] = 0;
         }
       }
-    // Chunks as run_row and run_row_in_place cut a row: whole cache lines from x = 1, the tail
-    // a whole line shifted back to end at nx - 2 (the in-place tail is a part of that), a row
-    // shorter than a line one chunk.
-    const int interior = d_.nx - 2;
-    chunks_per_row_ = (interior + kLine - 1) / kLine;
+    // Chunks as run_row and run_row_in_place cut a row (chunk_nodes).
+    chunks_per_row_ = (d_.nx - 2 + kLine - 1) / kLine;
     chunk_class_.assign(row_mask_.size() * static_cast<std::size_t>(chunks_per_row_), kEmptyChunk);
     for (int z = 1; z < d_.nz - 1; ++z)
       for (int y = 1; y < d_.ny - 1; ++y)
         for (int c = 0; c < chunks_per_row_; ++c) {
-          int lo = 1 + c * kLine;
-          const int hi = std::min(lo + kLine - 1, d_.nx - 2);
-          if (hi - lo + 1 < kLine && interior >= kLine) lo = d_.nx - 1 - kLine;
+          const auto [lo, hi] = chunk_nodes(c, d_.nx, kLine);
           std::uint8_t k = kEmptyChunk;
           for (int x = lo; x <= hi; ++x) {
             const std::size_t i = d_.index(x, y, z);
@@ -726,9 +754,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
                        static_cast<std::size_t>(c)] = k;
         }
     const auto busy = chunk_class_.size() - static_cast<std::size_t>(std::count(chunk_class_.begin(), chunk_class_.end(), kEmptyChunk));
-    // streaming by position pays below about 3/4 of the chunks busy (measured: forest and cloud
-    // bakes at 0.53-0.71 gain 16-26%, a lattice full of medium loses 8%; docs/performance.md)
-    sparse_ = 4 * busy < 3 * chunk_class_.size();
+    sparse_ = mostly_idle(busy, chunk_class_.size());
     busy_chunks_ = busy;
     // ahead_[c]: the state index of the first node of the busy chunk kAheadChunks busy chunks
     // after busy chunk c in row order (-1: none)
@@ -1639,9 +1665,13 @@ class OpenMpBackend final : public Backend {
   // Measured in docs/performance.md ("In-place streaming"): once two levels exceed the cache, in
   // place ran 1.1-1.6x faster than two levels with temporal blocking in float32 (the stores land
   // on lines the same node just read); float16 ran slower in place (its conversions by chunk).
-  bool prefers_in_place(const Dims& d, Precision p, bool) const override {
+  // Not where the lattice is sparse: streaming by position (two-level layout) beats both there
+  // (plant-128: 3x the in-place rate), unless the solve rewrites the state, which leaves it.
+  bool prefers_in_place(const LatticeGeometry& g, Precision p, bool rewrites_state) const override {
     const double cache = static_cast<double>(host_last_level_cache_bytes());
-    return p != Precision::Float16 && cache > 0 && static_cast<double>(bytes_per_system(d, p)) > 2.0 * cache;
+    if (p == Precision::Float16 || cache <= 0 || static_cast<double>(bytes_per_system(g.dims, p)) <= 2.0 * cache)
+      return false;
+    return rewrites_state || !position_streaming_pays(g, 64 / bytes_per_value(p));
   }
   std::size_t bytes_per_lattice(const Dims& d) const override { return d.count() * (sizeof(float) + 1); }
   std::size_t available_bytes() const override { return host_memory_limit().bytes; }

@@ -216,8 +216,9 @@ class Backend {
   // True where the backend runs such a lattice faster in place than with two levels (measured:
   // docs/performance.md), so a bake that may choose does. rewrites_state: the solve rewrites the
   // state between steps (Krylov vectors, DSA corrections), which a backend may do in the natural
-  // layout only.
-  virtual bool prefers_in_place(const Dims&, Precision, bool /*rewrites_state*/) const { return false; }
+  // layout only. The geometry, not only its size: a CPU streams sparse lattices by position, in
+  // the two-level layout.
+  virtual bool prefers_in_place(const LatticeGeometry&, Precision, bool /*rewrites_state*/) const { return false; }
   virtual std::size_t bytes_per_lattice(const Dims& dims) const = 0;
   virtual std::size_t available_bytes() const = 0;
   // Systems a batch should hold when memory allows: the CPU gains nothing from more than one

@@ -379,7 +379,7 @@ StateLayout state_layout(const ModelPlan& mp, const Backend& backend, const Bake
                              std::max(1, std::min(static_cast<int>(mp.channels.size()), static_cast<int>(mp.systems()))));
   if (fit >= 0 && fit < whole) return StateLayout::InPlace;
   const bool rewrites = mp.steps.method != SolverMethod::Plain;
-  return backend.prefers_in_place(mp.lattice.dims, mp.steps.precision, rewrites) ? StateLayout::InPlace
+  return backend.prefers_in_place(mp.lattice, mp.steps.precision, rewrites) ? StateLayout::InPlace
                                                                                  : StateLayout::TwoLevels;
 }
 

@@ -292,3 +292,27 @@ TEST_CASE("Streaming by position on a sparse lattice gives the same bits as the 
         CHECK(same);
       }
 }
+
+TEST_CASE("The CPU picks in place only for dense lattices larger than its cache", "[transport][shifted]") {
+  const auto backend = cpu_backend(2);
+  const double cache = static_cast<double>(backend->cache_bytes());
+  if (cache <= 0) {
+    WARN("the host reports no last-level cache: the CPU never prefers in place, nothing to check");
+    return;
+  }
+  // An edge whose two-level float32 state is twice the size in-place starts at.
+  int n = 16;
+  while (static_cast<double>(backend->bytes_per_system({n, n, n}, Precision::Float32)) <= 4.0 * cache) n += 8;
+  const Dims d{n, n, n};
+  LatticeGeometry dense = uniform_lattice(d, 0.5f);
+  LatticeGeometry sparse = uniform_lattice(d, 0.0f);  // a plant-like block: most chunks without medium
+  for (int z = 1; z < n / 3; ++z)
+    for (int y = 1; y < n / 3; ++y)
+      for (int x = 1; x < n / 3; ++x) sparse.density[d.index(x, y, z)] = 0.5f;
+  CHECK(backend->prefers_in_place(dense, Precision::Float32, false));
+  CHECK_FALSE(backend->prefers_in_place(sparse, Precision::Float32, false));  // it streams by position
+  CHECK(backend->prefers_in_place(sparse, Precision::Float32, true));  // a rewritten state leaves that
+  CHECK_FALSE(backend->prefers_in_place(dense, Precision::Float16, false));
+  const Dims small{16, 16, 16};
+  CHECK_FALSE(backend->prefers_in_place(uniform_lattice(small, 0.5f), Precision::Float32, false));
+}

@@ -21,7 +21,7 @@ class PlanningBackend final : public Backend {
                   bool faster = false)
       : preferred_(preferred), available_(available), per_system_(per_system), in_place_(in_place), faster_(faster) {}
   std::size_t bytes_per_system_in_place(const Dims&, Precision) const override { return in_place_; }
-  bool prefers_in_place(const Dims&, Precision, bool rewrites_state) const override { return faster_ && !rewrites_state; }
+  bool prefers_in_place(const LatticeGeometry&, Precision, bool rewrites_state) const override { return faster_ && !rewrites_state; }
   std::string name() const override { return "planning"; }
   std::string description() const override { return "batch planning only"; }
   bool supports(Precision) const override { return true; }
