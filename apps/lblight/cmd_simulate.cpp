@@ -90,6 +90,9 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
   SimulationOutput out;
   if (a.light) {
     backend = a.solve.make_backend("simulate");
+    // as bake: every frame reads totals and states back from the device (unmeasured here; the
+    // same first-touch cost bake measured per batch, docs/performance.md)
+    if (!backend->occupies_host_cores()) keep_freed_host_memory();
     if (!backend->supports(sequence.precision))
       throw_invalid(std::string("the ") + backend->name() + " backend cannot store " + to_string(sequence.precision) +
                         "; allowed: " + supported_precisions(*backend),
