@@ -817,10 +817,13 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       offset_[m] = o;
     }
   }
+  // Where f_m(q) sits within direction m's array while streaming by position, and in the state.
+  long long shifted_position(int m, long long q) const {
+    const long long p = q - offset_[m];
+    return p < 0 ? p + static_cast<long long>(stride_) : p;
+  }
   long long shifted_at(int m, long long q) const {
-    long long p = q - offset_[m];
-    if (p < 0) p += static_cast<long long>(stride_);
-    return static_cast<long long>(m) * static_cast<long long>(stride_) + p;
+    return static_cast<long long>(m) * static_cast<long long>(stride_) + shifted_position(m, q);
   }
   // f(t)'s boundary-fed entries set to the boundary values (or to 0: the first step, which only
   // advances the clock, must not stream f(0)'s); offset_ is left at t.
@@ -1128,7 +1131,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     const long long L = static_cast<long long>(stride_), row = state_index(0, y, z);
     for (int m = 0; m < kQ; ++m) {
       const long long at = pre_collision_at(m, row);
-      whole = whole && (!shifted_ || at - static_cast<long long>(m) * L + nx <= L);
+      whole = whole && (!shifted_ || shifted_position(m, row) + nx <= L);  // no wrap inside the row
       row_base[m] = g + at;
     }
     if (!whole) {
@@ -1261,8 +1264,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       Store* base[kQ];
       bool whole = true;
       for (int m = 0; m < kQ; ++m) {
-        long long p = row + x0 - offset_[m];
-        if (p < 0) p += L;
+        const long long p = shifted_position(m, row + x0);
         whole = whole && p + (x1 - x0) <= L;
         base[m] = g + static_cast<long long>(m) * L + p - x0;
       }
