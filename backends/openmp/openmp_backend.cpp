@@ -1268,28 +1268,24 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
         whole = whole && p + (x1 - x0) <= L;
         base[m] = g + static_cast<long long>(m) * L + p - x0;
       }
-      if constexpr (!kCanStream) {  // 16-bit storage: the chunk converted through staged_chunk
+      if constexpr (!kCanStream) {  // 16-bit storage: the chunk converted through staged_chunk,
+        // a whole line per instruction group, a short or wrapping chunk value by value
         const int count = x1 - x0;
-        if (whole && count == kLine) {
-          pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
-            staged_chunk(
-                x0, x1 - 1, [&](int m, Real* stage) LBL_INLINE_LAMBDA { halves_to_reals<kLine>(base[m] + x0, stage); },
-                [&](int m, const Real* post) LBL_INLINE_LAMBDA { reals_to_halves<kLine>(post, base[m] + x0); }, node);
-          });
-        } else {
-          pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
-            staged_chunk(
-                x0, x1 - 1,
-                [&](int m, Real* stage) LBL_INLINE_LAMBDA {
-                  for (int l = 0; l < kLine; ++l)
-                    stage[l] = l < count ? static_cast<Real>(g[shifted_at(m, row + x0 + l)]) : Real(0);
-                },
-                [&](int m, const Real* post) LBL_INLINE_LAMBDA {
-                  for (int l = 0; l < count; ++l) g[shifted_at(m, row + x0 + l)] = static_cast<Store>(post[l]);
-                },
-                node);
-          });
-        }
+        const bool line = whole && count == kLine;
+        pick(c, [&](auto&& node) LBL_INLINE_LAMBDA {
+          staged_chunk(
+              x0, x1 - 1,
+              [&](int m, Real* stage) LBL_INLINE_LAMBDA {
+                if (line) return halves_to_reals<kLine>(base[m] + x0, stage);
+                for (int l = 0; l < kLine; ++l)
+                  stage[l] = l < count ? static_cast<Real>(g[shifted_at(m, row + x0 + l)]) : Real(0);
+              },
+              [&](int m, const Real* post) LBL_INLINE_LAMBDA {
+                if (line) return reals_to_halves<kLine>(post, base[m] + x0);
+                for (int l = 0; l < count; ++l) g[shifted_at(m, row + x0 + l)] = static_cast<Store>(post[l]);
+              },
+              node);
+        });
       } else if (whole) {
         auto near = [&](int x, Real(&f)[kQ]) LBL_INLINE_LAMBDA {
           LBL_UNROLL
