@@ -38,6 +38,7 @@ struct Moments {
 template <typename Real>
 LBL_HOSTDEV inline Moments moments(const Real (&f)[d3q19::kQ], double fx, double fy, double fz) {
   double rho = 0, jx = 0, jy = 0, jz = 0;
+  LBL_UNROLL
   for (int m = 0; m < d3q19::kQ; ++m) {
     const double v = static_cast<double>(f[m]);
     rho += v;
@@ -56,6 +57,7 @@ template <typename Real>
 LBL_HOSTDEV inline Moments collide(Real (&f)[d3q19::kQ], double tau, double fx, double fy, double fz) {
   const Moments mo = moments(f, fx, fy, fz);
   const double omega = 1.0 / tau, keep = 1.0 - 0.5 * omega;
+  LBL_UNROLL
   for (int m = 0; m < d3q19::kQ; ++m) {
     const double ex = d3q19::cx(m), ey = d3q19::cy(m), ez = d3q19::cz(m);
     const double eu = ex * mo.ux + ey * mo.uy + ez * mo.uz;
@@ -81,8 +83,10 @@ LBL_HOSTDEV inline double scalar_equilibrium(int k, double s, double ux, double 
 template <typename Real>
 LBL_HOSTDEV inline void collide_scalar(Real (&g)[kQ7], double tau, double ux, double uy, double uz) {
   double s = 0;
+  LBL_UNROLL
   for (int k = 0; k < kQ7; ++k) s += static_cast<double>(g[k]);
   const double omega = 1.0 / tau;
+  LBL_UNROLL
   for (int k = 0; k < kQ7; ++k) {
     const double geq = scalar_equilibrium(k, s, ux, uy, uz);
     g[k] = static_cast<Real>(static_cast<double>(g[k]) - omega * (static_cast<double>(g[k]) - geq));

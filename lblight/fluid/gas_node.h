@@ -1,7 +1,8 @@
 // What one node of the gas solver does in a step ([Wei2004], docs/fluid.md), as LBL_HOSTDEV
 // functions over plain pointers and values (GasView), as lattice/collide.h and
-// backends/cuda/lb_device.h are for the lighting: the OpenMP loops of gas_solver.cpp call them,
-// and a GPU kernel runs one thread per node of the same. A step is four launches over all nodes:
+// backends/cuda/lb_device.h are for the lighting: the OpenMP loops of gas_solver.cpp call them
+// (vectorised across a row's nodes; stream_node's interior cases there as shifted row copies,
+// the same values), and a GPU kernel runs one thread per node of the same. A step is four launches over all nodes:
 // collide_node, then stream_node for the flow, the temperature and the smoke. Every node writes
 // only its own entries, so any order of nodes gives the same bits
 // (tests/fluid/test_gas_emulated.cpp runs them launch by launch in another order).
@@ -49,34 +50,45 @@ LBL_HOSTDEV inline std::size_t node_index(const GasView& v, int x, int y, int z)
 template <int Q>
 LBL_HOSTDEV inline double scalar_sum(const float* g, std::size_t n, std::size_t i) {
   double s = 0;
+  LBL_UNROLL
   for (int k = 0; k < Q; ++k) s += g[k * n + i];
   return s;
 }
 
-// Collides node i (flow, then temperature and smoke with the flow's velocity) into the post
-// arrays and stores its moments; solid nodes are left alone.
-LBL_HOSTDEV inline void collide_node(const GasView& v, std::size_t i) {
-  if (v.solid[i]) return;
+// Collides fluid node i (flow, then temperature and smoke with the flow's velocity) into the
+// post arrays and stores its moments.
+LBL_HOSTDEV LBL_FORCEINLINE void collide_fluid_node(const GasView& v, std::size_t i) {
   const double temp = scalar_sum<kQ7>(v.t, v.n, i);
   v.temperature[i] = temp;
   v.smoke[i] = scalar_sum<kQ7>(v.c, v.n, i);
   // buoyancy: [Wei2004] eq. (16), upward, proportional to T - T_ambient
   const double fz = v.force[2] + v.buoyancy * (temp - v.t_ambient);
   float f[d3q19::kQ];
+  LBL_UNROLL
   for (int m = 0; m < d3q19::kQ; ++m) f[m] = v.f[m * v.n + i];
   const Moments mo = collide(f, v.tau, v.force[0], v.force[1], fz);
+  LBL_UNROLL
   for (int m = 0; m < d3q19::kQ; ++m) v.f_post[m * v.n + i] = f[m];
   v.rho[i] = mo.rho;
   v.ux[i] = mo.ux;
   v.uy[i] = mo.uy;
   v.uz[i] = mo.uz;
   float g[kQ7];
+  LBL_UNROLL
   for (int k = 0; k < kQ7; ++k) g[k] = v.t[k * v.n + i];
   collide_scalar(g, v.tau_temperature, mo.ux, mo.uy, mo.uz);
+  LBL_UNROLL
   for (int k = 0; k < kQ7; ++k) v.t_post[k * v.n + i] = g[k];
+  LBL_UNROLL
   for (int k = 0; k < kQ7; ++k) g[k] = v.c[k * v.n + i];
   collide_scalar(g, v.tau_smoke, mo.ux, mo.uy, mo.uz);
+  LBL_UNROLL
   for (int k = 0; k < kQ7; ++k) v.c_post[k * v.n + i] = g[k];
+}
+
+// The same for any node: solid nodes are left alone.
+LBL_HOSTDEV inline void collide_node(const GasView& v, std::size_t i) {
+  if (!v.solid[i]) collide_fluid_node(v, i);
 }
 
 // Pull streaming into node (x, y, z) of one lattice (Q = 19 for the flow, 7 for a scalar): value
