@@ -334,6 +334,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           inject(0, false);
         } else {
           shift_offsets(now_);
+          drop_vacuum_f0();
           step_shifted();
         }
         ++now_;
@@ -448,7 +449,10 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     Slot& slot = slots_.at(static_cast<std::size_t>(system));
     if (f.size() != kQ * n_) throw std::invalid_argument("write_state: wrong state size");
     unswap();
-    unshift();
+    if (shifted_) {
+      write_shifted_state(system, f);
+      return;
+    }
     slot.lit.light_all();
     if (now_ == 0) now_ = 1;  // a state with f(q) = S g: the first step must do real work
     Store* g = slot.buffer(cur_);
@@ -466,6 +470,45 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
           for (int x = x0; x <= x1; ++x) dst[x] = static_cast<Store>(in[x]);
         }
       }
+  }
+
+  // write_state while streaming by position, which it keeps (a warm start on a sparse lattice
+  // runs at the by-position rate): f_m(q) goes where node q's value sits at the clock's time,
+  // the boundary-fed entries are set again. A state written before the first step first takes
+  // that step, which only advances the clock (as now_ = 1 does for two levels).
+  void write_shifted_state(int system, const std::vector<double>& f) {
+    if (now_ == 0) step(1);
+    Store* g = slots_.at(static_cast<std::size_t>(system)).buffer(0);
+#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+    for (int m = 0; m < kQ; ++m)
+      for (int z = 1; z < d_.nz - 1; ++z)
+        for (int y = 1; y < d_.ny - 1; ++y) {
+          const double* in = f.data() + static_cast<std::size_t>(m) * n_ + d_.index(0, y, z);
+          for (int x = 1; x < d_.nx - 1; ++x) g[shifted_at(m, state_index(x, y, z))] = static_cast<Store>(in[x]);
+        }
+    inject(now_, true);
+    slots_.at(static_cast<std::size_t>(system)).vacuum_f0_written = true;
+  }
+  // A written state may hold f_0 on nodes of density 0 (the previous frame's smoke was there).
+  // The pull's next step drops it where the material absorbs (f_0 times f0_keep, plus rho times
+  // the rest: 0); streaming by position does not visit empty rows and chunks, so it drops them
+  // here, before that step. Nodes it does visit get the same bits either way.
+  void drop_vacuum_f0() {
+    for (int s = 0; s < active_; ++s) {
+      Slot& slot = slots_[static_cast<std::size_t>(s)];
+      if (!slot.vacuum_f0_written) continue;
+      slot.vacuum_f0_written = false;
+      const unsigned absorb_bits = absorb_bits_[static_cast<std::size_t>(slot.spec.channel)];
+      Store* g = slot.buffer(0);
+#pragma omp parallel for collapse(2) schedule(static) num_threads(threads_)
+      for (int z = 1; z < d_.nz - 1; ++z)
+        for (int y = 1; y < d_.ny - 1; ++y)
+          for (int x = 1; x < d_.nx - 1; ++x) {
+            const std::size_t i = d_.index(x, y, z);
+            if (density_[i] == 0.0f && f0_keep<Real>(absorb_bits, material_[i]) == Real(0))
+              g[shifted_at(0, state_index(x, y, z))] = Store(0);
+          }
+    }
   }
 
   const double* layer_sums(int system) const override {
@@ -651,6 +694,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
     AlignedBuffer<Real> totals, scratch;
     std::size_t stride = 0;
     LitSpans lit;  // where each level can be nonzero (lit_spans.h)
+    bool vacuum_f0_written = false;  // write_state while streaming by position: see drop_vacuum_f0
     Store* buffer(int level) { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
     const Store* buffer(int level) const { return state.data() + static_cast<std::size_t>(level) * kQ * stride; }
   };
@@ -973,6 +1017,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
   void unshift() {
     if (!shifted_) return;
     shifted_ = false;
+    for (Slot& slot : slots_) slot.vacuum_f0_written = false;  // the pull's steps drop it themselves
     const long long L = static_cast<long long>(stride_);
     if (now_ > 0) shift_offsets(now_ - 1);
     for (int s = 0; s < active_; ++s) {
