@@ -295,6 +295,7 @@ class CpuLatticeSolver final : public LatticeSolver, public KrylovVectors, publi
       if (batch[s].channel < 0 || batch[s].channel >= static_cast<int>(ops_.size()))
         throw std::logic_error("system channel out of range");
       slot.spec = batch[s];
+      slot.vacuum_f0_written = false;
       slot.stride = stride_;
       if (slot.state.size() == 0) {
         slot.state.allocate(levels() * kQ * stride_);
