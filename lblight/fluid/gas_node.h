@@ -2,8 +2,8 @@
 // functions over plain pointers and values (GasView), as lattice/collide.h and
 // backends/cuda/lb_device.h are for the lighting: the OpenMP loops of gas_solver.cpp call them
 // (vectorised across a row's nodes; stream_node's interior cases there as shifted row copies,
-// the same values), and a GPU kernel runs one thread per node of the same. A step is four launches over all nodes:
-// collide_node, then stream_node for the flow, the temperature and the smoke. Every node writes
+// the same values), and a GPU kernel runs one thread per node of the same. A step is four
+// launches over all nodes: collide_node, then stream_node for the flow, the temperature and the smoke. Every node writes
 // only its own entries, so any order of nodes gives the same bits
 // (tests/fluid/test_gas_emulated.cpp runs them launch by launch in another order).
 #pragma once

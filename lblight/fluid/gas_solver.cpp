@@ -62,19 +62,19 @@ GasSolver::GasSolver(const GasSettings& settings) : s_(settings) {
   threads_ = s_.threads > 0 ? s_.threads : std::max(1, omp_get_max_threads());
   if (s_.solid.empty()) s_.solid.assign(n_, 0);
   const Dims& d = s_.dims;
-  row_has_solid_.assign(static_cast<std::size_t>(d.ny) * d.nz, 0);
+  row_has_solid_.assign(row_of(0, d.nz), 0);
   for (int z = 0; z < d.nz; ++z)
     for (int y = 0; y < d.ny; ++y)
       for (int x = 0; x < d.nx; ++x)
-        if (s_.solid[d.index(x, y, z)]) row_has_solid_[static_cast<std::size_t>(y) + static_cast<std::size_t>(d.ny) * z] = 1;
+        if (s_.solid[d.index(x, y, z)]) row_has_solid_[row_of(y, z)] = 1;
   row_streams_plainly_.assign(row_has_solid_.size(), 0);  // set for rows inside the box in y and z
   for (int z = 1; z + 1 < d.nz; ++z)
     for (int y = 1; y + 1 < d.ny; ++y) {
       bool plain = true;
       for (int dz = -1; dz <= 1; ++dz)
         for (int dy = -1; dy <= 1; ++dy)
-          plain = plain && !row_has_solid_[static_cast<std::size_t>(y + dy) + static_cast<std::size_t>(d.ny) * (z + dz)];
-      row_streams_plainly_[static_cast<std::size_t>(y) + static_cast<std::size_t>(d.ny) * z] = plain;
+          plain = plain && !row_has_solid_[row_of(y + dy, z + dz)];
+      row_streams_plainly_[row_of(y, z)] = plain;
     }
   f_.assign(kQ * n_, 0.0f);
   t_.assign(kQ7 * n_, 0.0f);
@@ -155,7 +155,7 @@ void GasSolver::collide_all() {
       const std::size_t row = d.index(0, y, z);
       // Runs of fluid nodes (the whole row where it holds no obstacle), each with no branch
       // inside: GCC vectorises it across nodes (8 doubles a vector on AVX-512).
-      const bool obstacles = row_has_solid_[static_cast<std::size_t>(y) + static_cast<std::size_t>(d.ny) * z];
+      const bool obstacles = row_has_solid_[row_of(y, z)];
       for (int a = 0; a < d.nx;) {
         int b = obstacles ? a : d.nx;
         while (b < d.nx && !v.solid[row + static_cast<std::size_t>(b)]) ++b;
@@ -183,7 +183,7 @@ void GasSolver::stream(GasLattice lattice, const float* post, float* next) {
       // solid nodes as selects where the rows around hold obstacles). The end nodes meet the x faces.
       stream_node<Q>(v, lattice, post, next, 0, y, z);
       stream_node<Q>(v, lattice, post, next, d.nx - 1, y, z);
-      const bool plain = row_streams_plainly_[static_cast<std::size_t>(y) + static_cast<std::size_t>(d.ny) * z];
+      const bool plain = row_streams_plainly_[row_of(y, z)];
       const long long row = static_cast<long long>(d.index(0, y, z));
       for (int m = 0; m < Q; ++m) {
         const long long shift = cx(m) + nx * cy(m) + plane * cz(m);

@@ -96,9 +96,10 @@ class GasSolver {
   std::size_t n_ = 0;
   std::vector<float> f_, f_post_, t_, t_post_, c_, c_post_;  // [m * n + node]
   std::vector<double> rho_, ux_, uy_, uz_, temp_, smoke_;  // per node, as of the last collision
-  // Per row (y + ny z), from the obstacles: rows holding a solid node collide node by node; rows
-  // whose 3 x 3 neighbourhood of rows is fluid stream by plain shifted copies (the others inside
-  // the box with selects for the obstacles).
+  // Per row (row_of), from the obstacles: rows holding a solid node collide run by run between
+  // them; rows whose 3 x 3 neighbourhood of rows is fluid stream by plain shifted copies (the
+  // others inside the box with selects for the obstacles).
+  std::size_t row_of(int y, int z) const { return static_cast<std::size_t>(y) + static_cast<std::size_t>(s_.dims.ny) * z; }
   std::vector<std::uint8_t> row_has_solid_, row_streams_plainly_;
   long long steps_ = 0;
   int threads_ = 1;
