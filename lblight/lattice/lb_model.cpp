@@ -31,9 +31,9 @@ std::string LbModel::name() const {
 }
 
 bool* calibration_switch(LbModel& m, int k) {
-  bool* s[] = {&m.path_length,     &m.phase_moment,  &m.delta_m,      &m.isotropic_ambient,
+  bool* s[] = {&m.path_length,     &m.phase_moment,  &m.delta_m,         &m.isotropic_ambient,
                &m.remove_absorbed, &m.voxel_average, &m.diffusion_match, &m.path_absorption,
-               &m.decay_match};
+               &m.decay_match,     &m.first_collision};
   return s[k];
 }
 
@@ -58,6 +58,13 @@ double moment_matched_g(double target, int j) {
 
 namespace {
 
+std::array<double, kQ> removal(double sigma_t, bool path_length) {
+  std::array<double, kQ> removed{};
+  for (int k = 1; k < kQ; ++k)
+    removed[k] = path_length ? -std::expm1(-sigma_t * std::sqrt(static_cast<double>(length_sq(k)))) : sigma_t;
+  return removed;
+}
+
 // Omega of the calibrated model for (delta-M scaled) sigma_a, sigma_s and a phase function whose
 // discrete mean cosine is `mean_cosine` (phase_moment; else HG's g = mean_cosine as printed).
 OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const LbModel& model,
@@ -68,9 +75,9 @@ OmegaMatrix assemble(double sigma_a, double sigma_s, double mean_cosine, const L
   // sigma_t as in the papers.
   // Of that, absorbed[k] is absorbed (the albedo's complement, or over the whole path).
   std::array<double, kQ> absorbed{};
+  removed = removal(sigma_t, model.path_length);
   for (int k = 1; k < kQ; ++k) {
     const double len = model.path_length ? std::sqrt(static_cast<double>(length_sq(k))) : 1.0;
-    removed[k] = model.path_length ? -std::expm1(-sigma_t * len) : sigma_t;
     absorbed[k] = model.path_length && model.path_absorption ? -std::expm1(-sigma_a * len) : removed[k] * (1.0 - albedo);
   }
   // The matched g depends on j's class only (axial or diagonal; the lattice's symmetry): two
@@ -117,14 +124,8 @@ double lattice_diffusion(const OmegaMatrix& om, const std::array<double, kQ>& re
 namespace {
 
 OmegaMatrix build_calibrated_omega(const OpticalParams& p, const LbModel& model) {
-  // Delta-M: for a forward peak, the fraction f = g^2 of scattering is taken as no scattering at
-  // all, leaving sigma_s (1 - f) with asymmetry (g - f) / (1 - f); sigma_s (1 - g) is kept.
-  double sigma_s = p.sigma_s, g = p.g;
-  if (model.delta_m && g > 0.0 && g < 1.0) {
-    const double f = g * g;
-    sigma_s *= 1.0 - f;
-    g = (g - f) / (1.0 - f);
-  }
+  const OpticalParams scaled = model_params(p, model);
+  const double sigma_s = scaled.sigma_s, g = scaled.g;
   std::array<double, kQ> removed{};
   if (!model.diffusion_match || !(sigma_s > 0) || std::abs(g) >= 1.0)
     return assemble(p.sigma_a, sigma_s, g, model, removed);
@@ -187,6 +188,22 @@ OmegaMatrix build_model_omega(const OpticalParams& p, const LbModel& model) {
   if (kept.size() >= 4096) kept.clear();
   kept.emplace(key, om);
   return om;
+}
+
+OpticalParams model_params(const OpticalParams& p, const LbModel& model) {
+  // Delta-M: for a forward peak, the fraction f = g^2 of scattering is taken as no scattering at
+  // all, leaving sigma_s (1 - f) with asymmetry (g - f) / (1 - f); sigma_s (1 - g) is kept.
+  OpticalParams out = p;
+  if (model.calibrated && model.delta_m && p.g > 0.0 && p.g < 1.0) {
+    const double f = p.g * p.g;
+    out.sigma_s *= 1.0 - f;
+    out.g = (p.g - f) / (1.0 - f);
+  }
+  return out;
+}
+
+std::array<double, kQ> model_removal(const OpticalParams& p, const LbModel& model) {
+  return removal(model_params(p, model).sigma_t(), model.calibrated && model.path_length);
 }
 
 bool model_absorbs(bool material_absorbs, const LbModel& model) {

@@ -31,6 +31,10 @@ struct LbModel {
   // chosen so that the lattice's decay constant deep inside the medium is exact transport's
   // (lattice/decay_constant.h), where the lattice can reach it.
   bool decay_match = true;
+  // The uncollided light (what has not scattered) carried exactly instead of by the lattice's 18
+  // directions: each stored total gets the ray-marched, voxel-averaged uncollided fluence in place
+  // of the lattice's own uncollided part (solve/first_collision.h). Base solutions only.
+  bool first_collision = false;
 
   // "paper", "calibrated", or "calibrated (no path_length, ...; with path_absorption)": the
   // corrections that differ from the defaults
@@ -38,13 +42,21 @@ struct LbModel {
 };
 
 // The names of the corrections, in the order above ("path_length", ...).
-inline constexpr std::array<const char*, 9> kCalibrationNames{
-    "path_length",     "phase_moment",  "delta_m",         "isotropic_ambient", "remove_absorbed",
-    "voxel_average",   "diffusion_match", "path_absorption", "decay_match"};
+inline constexpr std::array<const char*, 10> kCalibrationNames{
+    "path_length",   "phase_moment",    "delta_m",         "isotropic_ambient", "remove_absorbed",
+    "voxel_average", "diffusion_match", "path_absorption", "decay_match",       "first_collision"};
 bool* calibration_switch(LbModel& model, int k);  // the switch kCalibrationNames[k]
 
 // Omega of one material and channel under `model` (build_omega for the papers' model).
 OmegaMatrix build_model_omega(const OpticalParams& params, const LbModel& model);
+
+// The optical parameters the lattice scatters with under `model`: delta-M scaled where that
+// correction is on (sigma_s (1 - g^2), asymmetry (g - g^2) / (1 - g^2)), else as given.
+OpticalParams model_params(const OpticalParams& params, const LbModel& model);
+
+// What direction k (1..18) loses per step at density 1: 1 - exp(-sigma_t |c_k|) with path_length,
+// sigma_t as in the papers (sigma_t of model_params; entry 0 is 0).
+std::array<double, d3q19::kQ> model_removal(const OpticalParams& params, const LbModel& model);
 
 // Whether nodes of a material with the given absorb flag dump f_0 under `model`.
 bool model_absorbs(bool material_absorbs, const LbModel& model);

@@ -9,6 +9,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/system_info.h"
 #include "lblight/solve/dsa.h"
+#include "lblight/solve/first_collision.h"
 #include "lblight/solve/krylov.h"
 
 namespace lblight {
@@ -73,8 +74,11 @@ class BatchRunner {
 
   // BiCGStab rounds, each verified by plain checks with the same error estimate; a round that
   // does not verify is followed by one with a ten times tighter residual.
-  BatchOutcome krylov() {
+  // sourced: the systems' states hold a volume source (first_collision), the boundary values are
+  // 0, and the checks step x <- A x + b through the Krylov vectors.
+  BatchOutcome krylov(bool sourced = false) {
     const StepPolicy& pol = mp_.steps;
+    sourced_ = sourced;
     double residual_tolerance = 0.1 * pol.tolerance;
     for (int round = 0; round < 4 && out_.steps < pol.max_steps; ++round) {
       KrylovProgress iterate;
@@ -85,7 +89,8 @@ class BatchRunner {
                             solver_, false);
         };
       const KrylovResult kr =
-          bicgstab(*solver_.krylov_vectors(), residual_tolerance, pol.max_steps - out_.steps, ctx_, iterate);
+          bicgstab(*solver_.krylov_vectors(), residual_tolerance, pol.max_steps - out_.steps, ctx_, iterate,
+                   !sourced ? KrylovRhs::StepOffset : round == 0 ? KrylovRhs::FromState : KrylovRhs::Kept);
       out_.steps += kr.steps;
       out_.krylov_iterations += kr.iterations;
       out_.krylov_residual = kr.residual;
@@ -202,7 +207,12 @@ class BatchRunner {
 
   // Runs `chunk` steps and a measure; true when every system's estimate has been below tolerance.
   bool check(int chunk, int planned) {
-    solver_.step_and_measure(chunk, residuals_);
+    if (sourced_) {
+      sourced_steps(*solver_.krylov_vectors(), chunk);
+      solver_.measure(residuals_);
+    } else {
+      solver_.step_and_measure(chunk, residuals_);
+    }
     out_.steps += chunk;
     return record_checks(chunk, planned, residuals_, false);
   }
@@ -251,7 +261,39 @@ class BatchRunner {
   BatchOutcome out_;
   std::vector<Residual> residuals_;
   Clock::time_point t0_;
+  bool sourced_ = false;
 };
+
+// The materials' parameters as given, for entry `channel` of mp.channels.
+std::array<OpticalParams, kMaxMaterials> channel_params(const ModelPlan& mp, int channel) {
+  int colour = 0;
+  while (colour < 2 && mp.channel_of[static_cast<std::size_t>(colour)] != channel) ++colour;
+  std::array<OpticalParams, kMaxMaterials> o{};
+  o[kMaterialMedium] = mp.spec->material.channel[static_cast<std::size_t>(colour)];
+  o[kMaterialWood] = mp.spec->wood_material.channel[static_cast<std::size_t>(colour)];
+  return o;
+}
+
+// The extinction each material's light is attenuated by under the plan's model (delta-M scaled).
+std::array<double, kMaxMaterials> model_sigma_t(const ModelPlan& mp, int channel) {
+  const auto params = channel_params(mp, channel);
+  std::array<double, kMaxMaterials> sigma_t{};
+  for (std::size_t m = 0; m < sigma_t.size(); ++m) sigma_t[m] = model_params(params[m], mp.model).sigma_t();
+  return sigma_t;
+}
+
+// Adds per_channel(channel) to the totals of every colour channel solved by it.
+template <typename F>
+void add_per_channel(const ModelPlan& mp, SolutionResult& r, F&& per_channel) {
+  for (int ch = 0; ch < static_cast<int>(mp.channels.size()); ++ch) {
+    const std::vector<double> add = per_channel(ch);
+    for (int c = 0; c < kChannels; ++c)
+      if (mp.channel_of[static_cast<std::size_t>(c)] == ch)
+        for (std::size_t i = 0; i < add.size(); ++i) r.totals[c][i] += static_cast<float>(add[i]);
+  }
+}
+
+bool corrects_uncollided(const ModelPlan& mp) { return mp.model.calibrated && mp.model.first_collision; }
 
 struct SystemRef {
   int solution;  // index into mp.solutions
@@ -578,8 +620,10 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   observer.model_started(mp, backend, solver->bytes_in_use(), so.layout);
 
   const std::vector<SystemRef> queue = system_queue(mp);
-  StateAccess* warm_state =
-      opt.warm && mp.steps.mode == IterationMode::Auto ? state_access_for_warm_start(*solver, backend) : nullptr;
+  // (first_collision's B00 starts from its source, not from another frame's light)
+  StateAccess* warm_state = opt.warm && mp.steps.mode == IterationMode::Auto && !corrects_uncollided(mp)
+                                ? state_access_for_warm_start(*solver, backend)
+                                : nullptr;
   // States of another lattice (or plan) cannot start this one: its systems start from zero.
   const bool warm_now = warm_state && opt.warm->dims == mp.lattice.dims && opt.warm->states.size() == queue.size() &&
                         std::none_of(opt.warm->states.begin(), opt.warm->states.end(),
@@ -593,6 +637,18 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   const bool fixed = mp.steps.mode != IterationMode::Auto;
   AmbientSum ambient(mp, /*wanted=*/!subset);
   std::vector<PartialSolution> partial(mp.solutions.size());
+  const bool first_collision = corrects_uncollided(mp);
+  if (first_collision && mp.steps.method != SolverMethod::BiCGStab)
+    throw_invalid("model '" + mp.spec->name + "': calibration first_collision solves B00's scattered light from a "
+                  "volume source, which needs solver method \"bicgstab\"");
+  if (first_collision && !solver->state_access())
+    throw Error(ErrorCategory::Unavailable, "calibration first_collision: the " + backend.name() +
+                                                " backend offers no state access to hold its source");
+  // first_collision: per solution and channel, what the voxel average credits to B00 (first_collision.h)
+  std::vector<std::vector<double>> credits(mp.solutions.size() * mp.channels.size());
+  auto credit_of = [&](int solution, int ch) -> std::vector<double>& {
+    return credits[static_cast<std::size_t>(solution) * mp.channels.size() + static_cast<std::size_t>(ch)];
+  };
   for (std::size_t s = 0; s < partial.size(); ++s) {
     partial[s].result.plan = mp.solutions[s];
     partial[s].result.converged = true;  // until a channel does not
@@ -610,17 +666,30 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     std::vector<const SolutionPlan*> batch_solutions;
     for (std::size_t q = start; q < end; ++q) {
       const SolutionPlan* sp = &mp.solutions[static_cast<std::size_t>(queue[q].solution)];
-      batch.push_back({queue[q].channel, system_boundary(mp, *sp, queue[q].channel)});
+      // first_collision: B00's light enters through its source only (first_collision.h)
+      batch.push_back({queue[q].channel, first_collision && sp->index == 0 ? std::array<double, 19>{}
+                                                                            : system_boundary(mp, *sp, queue[q].channel)});
       if (batch_solutions.empty() || batch_solutions.back() != sp) batch_solutions.push_back(sp);
     }
 
     solver->reset(batch);
+    if (first_collision)
+      for (std::size_t q = start; q < end; ++q) {
+        const SolutionPlan& sp = mp.solutions[static_cast<std::size_t>(queue[q].solution)];
+        const int ch = queue[q].channel;
+        if (sp.index != 0) continue;
+        FirstCollisionSource src = first_collision_source(mp.lattice, channel_params(mp, ch), mp.model,
+                                                          mp.channels[static_cast<std::size_t>(ch)], sp.boundary);
+        solver->state_access()->write_state(static_cast<int>(q - start), src.state);
+        credit_of(queue[q].solution, ch) = std::move(src.credit);
+      }
     if (warm_now) start_warm(*solver, *warm_state, *opt.warm, start, batch.size(), state_buffer);
     BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size(), warm_now);
     std::vector<DiffusionCorrection*> batch_corrections;
     for (const SystemSpec& spec : batch)
       if (!corrections.empty()) batch_corrections.push_back(corrections[static_cast<std::size_t>(spec.channel)].get());
-    const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov()
+    const bool sourced = first_collision && batch_solutions.front()->index == 0;  // Krylov: one system a batch
+    const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov(sourced)
                                  : mp.steps.method == SolverMethod::Dsa    ? runner.dsa(batch_corrections, dsa_settings)
                                                                            : runner.plain();
     const double batch_seconds = runner.seconds();
@@ -638,6 +707,13 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       SolutionResult r = std::move(p.result);
       r.converged = !fixed && r.converged;
       for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
+      if (first_collision && r.plan.index == 0)  // the scattered light solved; the uncollided light exactly
+        add_per_channel(mp, r, [&](int ch) {
+          std::vector<double> add = exact_uncollided(mp.lattice, model_sigma_t(mp, ch), base_solution_uncollided(0));
+          const std::vector<double>& credit = credit_of(queue[start + s].solution, ch);
+          for (std::size_t i = 0; i < add.size(); ++i) add[i] += credit[i];
+          return add;
+        });
       p = PartialSolution{};
       ambient.add(r);
       observer.solution_done(mp, r);

@@ -19,11 +19,16 @@ KrylovVectors& krylov_vectors_of(LatticeSolver& solver, const std::string& backe
 }
 
 KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const RunContext& ctx,
-                      const KrylovProgress& progress) {
+                      const KrylovProgress& progress, KrylovRhs rhs) {
   KrylovResult out;
   s.vectors_reserve(kCount);
-  s.vector_step_offset(kB);
-  s.vector_from_state(kX);
+  if (rhs == KrylovRhs::FromState) {
+    s.vector_from_state(kB);
+    s.vector_axpby(0.0, kB, 0.0, kX);
+  } else {
+    if (rhs == KrylovRhs::StepOffset) s.vector_step_offset(kB);
+    s.vector_from_state(kX);
+  }
   // (I - A) y into z, in one pass where the backend fuses it
   auto apply_m = [&](int y, int z) {
     s.vector_apply_minus(y, z);
@@ -99,6 +104,14 @@ KrylovResult bicgstab(KrylovVectors& s, double tolerance, int max_steps, const R
   out.reached = out.residual <= tolerance;
   s.vector_to_state(kX);
   return out;
+}
+
+void sourced_steps(KrylovVectors& s, int steps) {
+  for (int k = 0; k < steps; ++k) {
+    s.vector_apply(kX, kT);
+    s.vector_combine(1.0, kT, 1.0, kB, 0.0, kX);
+  }
+  s.vector_to_state(kX);
 }
 
 }  // namespace lblight

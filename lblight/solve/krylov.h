@@ -28,7 +28,15 @@ using KrylovProgress = std::function<void(const KrylovResult&)>;
 // The Krylov part of `solver` (backend.h); Error(Unavailable) naming `backend` when it has none.
 KrylovVectors& krylov_vectors_of(LatticeSolver& solver, const std::string& backend);
 
+// Where b comes from: T(0), what the boundary feeds (x starts from the state); system 0's state,
+// a volume source with the boundary values 0 (solve/first_collision.h; x starts from 0); or kept
+// from the previous call (x starts from the state: a sourced solve taken further).
+enum class KrylovRhs { StepOffset, FromState, Kept };
 KrylovResult bicgstab(KrylovVectors& vectors, double tolerance, int max_steps, const RunContext& ctx = {},
-                      const KrylovProgress& progress = {});
+                      const KrylovProgress& progress = {}, KrylovRhs rhs = KrylovRhs::StepOffset);
+
+// After a sourced bicgstab (KrylovRhs::FromState or Kept): `steps` plain steps x <- A x + b of the
+// same system, leaving x as system 0's state (what the bake's checks measure).
+void sourced_steps(KrylovVectors& vectors, int steps);
 
 }  // namespace lblight

@@ -170,6 +170,11 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
     mp.savings.cropped = mp.grid.dims.count() != full.count();
   }
   mp.ground.on = on_ground && scene.ground.enabled;
+  if (mp.ground.on && scene.solver.model.calibrated && scene.solver.model.first_collision)
+    throw_invalid("model '" + spec.name + "' stands on the ground, which calibration first_collision does not model "
+                  "(its exact uncollided light has no reflecting ground); switch first_collision off or set the "
+                  "model's \"ground\": false",
+                  {scene.file.string(), "/solver/calibration/first_collision", {}});
   if (mp.ground.on) {
     mp.ground.albedo = scene.ground.albedo;
     mp.ground.share = ground_share(ambient_boundary(scene.solver.model));
@@ -202,6 +207,7 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
 // One system per distinct channel: a grey material solves once and fills R, G and B.
 void plan_channels(ModelPlan& mp, const LbModel& model) {
   const ModelSpec& spec = *mp.spec;
+  mp.model = model;
   for (int c = 0; c < kChannels; ++c) {
     ChannelMaterials ch;
     ch.omega[kMaterialMedium] = build_model_omega(spec.material.channel[c], model);
@@ -233,6 +239,10 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
   if (scene.lighting.mode == LightingMode::Static) {
     if (ov.solutions) throw_invalid("--solutions applies to base lighting; this scene bakes static lighting",
                                     {scene.file.string(), "/lighting/mode", {}});
+    if (scene.solver.model.calibrated && scene.solver.model.first_collision)
+      throw_invalid("calibration first_collision applies to the ambient solution B00 of \"mode\": \"base\"; this "
+                    "scene bakes static lighting, which has none: switch first_collision off",
+                    {scene.file.string(), "/solver/calibration/first_collision", {}});
     SolutionPlan s;
     s.index = -1;
     s.grid_name = "light";
@@ -258,7 +268,9 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
     s.boundary = idx == 0 ? ambient_boundary(scene.solver.model) : base_boundary(idx);
     // docs/model.md sec. 4: with an empty boundary layer (margin >= 1 guarantees it) the interior
     // of B_0 is the sum of the directional solutions, so it need not be solved.
-    s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && mp.spec->margin >= 1;
+    // (Not with first_collision: B00's uncollided light is then exact, not the sum of 18 beams.)
+    s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && mp.spec->margin >= 1 &&
+                !(scene.solver.model.calibrated && scene.solver.model.first_collision);
     mp.savings.ambient_from_sum = mp.savings.ambient_from_sum || s.derived;
     mp.solutions.push_back(s);
   }

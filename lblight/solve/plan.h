@@ -101,6 +101,7 @@ struct ModelPlan {
   std::array<int, 3> lattice_index_min{};  // index coordinate of lattice node (0, 0, 0)
   std::vector<ChannelMaterials> channels;  // distinct channel materials (1 when R = G = B)
   std::array<int, 3> channel_of{};         // colour channel -> entry of `channels`
+  LbModel model;                           // the scene's solver model (channels are built by it)
   std::vector<SolutionPlan> solutions;
   GroundPlan ground;
   PlanSavings savings;

@@ -1,0 +1,177 @@
+#include "lblight/solve/first_collision.h"
+
+#include <cmath>
+#include <limits>
+
+#include "lblight/lattice/d3q19.h"
+
+namespace lblight {
+
+namespace {
+
+using namespace d3q19;
+
+constexpr int kPointsPerBeam = 16;
+
+// Optical depth from point (x, y, z) + offset (offset within the node's voxel, [-1/2, 1/2) per
+// axis) back against `travel` to the surface of the interior voxels' box [1/2, n - 3/2], where the
+// reference's light enters (docs/truth.md sec. 1): a voxel walk (Amanatides and Woo), exact for
+// the piecewise-constant medium.
+double depth_to_surface(const Dims& d, const std::vector<double>& mu, int x, int y, int z,
+                        const std::array<double, 3>& offset, const std::array<double, 3>& travel) {
+  const int hi[3] = {d.nx - 2, d.ny - 2, d.nz - 2};
+  int v[3] = {x, y, z}, step[3];
+  double next[3], delta[3];
+  for (int k = 0; k < 3; ++k) {
+    const double dir = -travel[static_cast<std::size_t>(k)], o = offset[static_cast<std::size_t>(k)];
+    step[k] = dir > 0 ? 1 : -1;
+    delta[k] = dir != 0 ? 1.0 / std::abs(dir) : std::numeric_limits<double>::infinity();
+    next[k] = dir != 0 ? (dir > 0 ? 0.5 - o : 0.5 + o) * delta[k] : delta[k];
+  }
+  double tau = 0, t = 0;
+  for (;;) {
+    const int k = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2) : (next[1] <= next[2] ? 1 : 2);
+    tau += mu[d.index(v[0], v[1], v[2])] * (next[k] - t);
+    if (tau > 40.0) return tau;  // exp(-40): nothing arrives
+    t = next[k];
+    next[k] += delta[k];
+    v[k] += step[k];
+    if (v[k] < 1 || v[k] > hi[k]) return tau;
+  }
+}
+
+// Point k of n in the unit cube, centred on 0: the R3 low-discrepancy sequence (Roberts), so
+// that the points a voxel is averaged over are spread evenly whatever n is.
+std::array<double, 3> voxel_point(int k) {
+  constexpr double g = 1.2207440846057596;  // the plastic number's cube-root cousin: x^4 = x + 1
+  const double a[3] = {1.0 / g, 1.0 / (g * g), 1.0 / (g * g * g)};
+  std::array<double, 3> p{};
+  for (int i = 0; i < 3; ++i) {
+    const double v = 0.5 + a[i] * (k + 1);
+    p[static_cast<std::size_t>(i)] = v - std::floor(v) - 0.5;
+  }
+  return p;
+}
+
+// Visits every interior node (x, y, z) after its upstream neighbour (x, y, z) - c, which it is
+// given as (px, py, pz): the order in which a lattice direction's light crosses the lattice.
+template <typename F>
+void sweep_along(const Dims& d, const int c[3], F&& visit) {
+  auto range = [](int c, int n, int& from, int& to, int& by) {
+    from = c >= 0 ? 1 : n - 2, to = c >= 0 ? n - 1 : 0, by = c >= 0 ? 1 : -1;
+  };
+  int z0, z1, dz, y0, y1, dy, x0, x1, dx;
+  range(c[2], d.nz, z0, z1, dz);
+  range(c[1], d.ny, y0, y1, dy);
+  range(c[0], d.nx, x0, x1, dx);
+  for (int z = z0; z != z1; z += dz)
+    for (int y = y0; y != y1; y += dy)
+      for (int x = x0; x != x1; x += dx) visit(x, y, z, x - c[0], y - c[1], z - c[2]);
+}
+
+std::vector<std::pair<std::array<double, 3>, double>> all_beams(const UncollidedLight& light, int directions) {
+  auto beams = light.beams;
+  if (light.isotropic_fluence != 0) {
+    // A spherical Fibonacci set: near-uniform points, equal weights.
+    const double golden = M_PI * (3.0 - std::sqrt(5.0));
+    for (int k = 0; k < directions; ++k) {
+      const double z = 1.0 - (2.0 * k + 1.0) / directions, r = std::sqrt(std::max(0.0, 1.0 - z * z));
+      beams.push_back({{r * std::cos(golden * k), r * std::sin(golden * k), z}, light.isotropic_fluence / directions});
+    }
+  }
+  return beams;
+}
+
+}  // namespace
+
+UncollidedLight base_solution_uncollided(int index) {
+  UncollidedLight l;
+  if (index == 0) {
+    l.isotropic_fluence = 18.0;
+  } else {
+    const double len = std::sqrt(static_cast<double>(length_sq(index)));
+    l.beams.push_back({{cx(index) / len, cy(index) / len, cz(index) / len}, 1.0});
+  }
+  return l;
+}
+
+std::vector<double> exact_uncollided(const LatticeGeometry& g, const std::array<double, kMaxMaterials>& sigma_t,
+                                     const UncollidedLight& light, int directions) {
+  const Dims& d = g.dims;
+  std::vector<double> mu(d.count());
+  for (std::size_t i = 0; i < mu.size(); ++i) mu[i] = g.density[i] * sigma_t[g.material[i]];
+  const auto beams = all_beams(light, directions);
+  const double iso_weight = light.isotropic_fluence / directions;
+  std::vector<double> phi(d.count(), 0.0);
+#pragma omp parallel for schedule(dynamic)
+  for (int z = 1; z < d.nz - 1; ++z)
+    for (int y = 1; y < d.ny - 1; ++y)
+      for (int x = 1; x < d.nx - 1; ++x) {
+        const std::size_t i = d.index(x, y, z);
+        // The voxel's mean: a beam at kPointsPerBeam points of the voxel; isotropic light at one
+        // point per direction, each direction its own (a joint low-discrepancy set).
+        double v = 0;
+        int point = 0;
+        for (const auto& b : beams) {
+          const int points = b.second == iso_weight && iso_weight != 0 ? 1 : kPointsPerBeam;
+          double sum = 0;
+          for (int k = 0; k < points; ++k) sum += std::exp(-depth_to_surface(d, mu, x, y, z, voxel_point(point++), b.first));
+          v += b.second * sum / points;
+        }
+        phi[i] = v;
+      }
+  return phi;
+}
+
+FirstCollisionSource first_collision_source(const LatticeGeometry& g, const std::array<OpticalParams, kMaxMaterials>& optics,
+                                            const LbModel& model, const ChannelMaterials& channel,
+                                            const std::array<double, 19>& boundary) {
+  const Dims& d = g.dims;
+  const std::size_t n = d.count();
+  std::array<double, kMaxMaterials> sigma_t{};
+  std::array<std::array<double, kQ>, kMaxMaterials> removed{};
+  for (int m = 0; m < kMaxMaterials; ++m) {
+    sigma_t[static_cast<std::size_t>(m)] = model_params(optics[static_cast<std::size_t>(m)], model).sigma_t();
+    removed[static_cast<std::size_t>(m)] = model_removal(optics[static_cast<std::size_t>(m)], model);
+  }
+  FirstCollisionSource out;
+  out.state.assign(kQ * n, 0.0);
+  out.credit.assign(n, 0.0);
+  std::vector<double> u(n);
+  for (int j = 1; j < kQ; ++j) {
+    const double b = boundary[static_cast<std::size_t>(j)];
+    if (b == 0) continue;
+    const int c[3] = {cx(j), cy(j), cz(j)};
+    const double len = std::sqrt(static_cast<double>(length_sq(j)));
+    sweep_along(d, c, [&](int x, int y, int z, int px, int py, int pz) {
+      const std::size_t p = d.index(px, py, pz);
+      u[d.index(x, y, z)] = d.is_boundary(px, py, pz) ? b : u[p] * std::exp(-g.density[p] * sigma_t[g.material[p]] * len);
+    });
+    for (int z = 1; z < d.nz - 1; ++z)
+      for (int y = 1; y < d.ny - 1; ++y)
+        for (int x = 1; x < d.nx - 1; ++x) {
+          const std::size_t q = d.index(x, y, z);
+          const double rho = g.density[q];
+          const int mat = g.material[q];
+          const double r = removed[static_cast<std::size_t>(mat)][static_cast<std::size_t>(j)];
+          if (!(rho > 0) || !(r > 0)) continue;
+          // rho r_j of the entering light leaves j in the lattice's collision; the exact share
+          // is -expm1(-rho sigma_t |c_j|): Omega's column j scaled to it
+          const double a = -std::expm1(-rho * sigma_t[static_cast<std::size_t>(mat)] * len) / r * u[q];
+          const OmegaMatrix& om = channel.omega[static_cast<std::size_t>(mat)];
+          for (int m = 0; m < kQ; ++m) {
+            const double v = a * (om[static_cast<std::size_t>(m * kQ + j)] + (m == j ? r : 0.0));
+            if (m == 0) {
+              out.state[q] += v;  // the rest component stays at the node
+              continue;
+            }
+            if (channel.voxel_average[static_cast<std::size_t>(mat)]) out.credit[q] += 0.5 * v;
+            const int tx = x + cx(m), ty = y + cy(m), tz = z + cz(m);
+            if (!d.is_boundary(tx, ty, tz)) out.state[static_cast<std::size_t>(m) * n + d.index(tx, ty, tz)] += v;
+          }
+        }
+  }
+  return out;
+}
+
+}  // namespace lblight
