@@ -491,9 +491,9 @@ SolverSpec read_solver(const JsonReader& r) {
     check_fields(c, scene_object("solver.calibration"));  // kCalibrationNames
     for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k)
       *calibration_switch(s.model, k) = c.boolean_or(kCalibrationNames[k], *calibration_switch(s.model, k));
-    if (s.model.first_collision && s.method != SolverMethod::BiCGStab)
-      c.fail("first_collision solves B00's scattered light from a volume source, which needs \"method\": "
-             "\"bicgstab\" (method " + method + " steps with light entering through the boundary)", "first_collision");
+    if (s.model.first_collision && s.method == SolverMethod::Dsa)
+      c.fail("first_collision solves B00's scattered light from a volume source, which method dsa does not take; "
+             "allowed: \"method\": \"plain\" or \"bicgstab\"", "first_collision");
   }
   return s;
 }

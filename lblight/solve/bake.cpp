@@ -34,6 +34,8 @@ struct BatchOutcome {
   int krylov_iterations = 0;
   double krylov_residual = 0;
   bool dsa_fell_back = false;  // DSA did not pay and plain checks finished the batch
+  // Plain iteration by pulses (BatchRunner::pulses): each system's totals, in place of its state's.
+  std::vector<std::vector<float>> accumulated;
 };
 
 class BatchRunner {
@@ -70,6 +72,23 @@ class BatchRunner {
       }
     }
     return std::move(out_);
+  }
+
+  // Plain iteration from a volume source s held as the systems' states (first_collision, boundary
+  // values 0): stepped alone the state is the pulse A^k s, and plain iteration x <- A x + s from
+  // x = s is the running sum of the pulses, so its totals are the running sum of the pulses'
+  // totals, taken after every step. The same checks and stop as plain(); out.accumulated holds the
+  // totals.
+  BatchOutcome pulses() {
+    const std::size_t systems = out_.monitors.size(), n = mp_.lattice.dims.count();
+    sums_.assign(systems, std::vector<double>(n, 0.0));
+    buffer_.resize(n);
+    solver_.measure(residuals_);
+    for (std::size_t s = 0; s < systems; ++s) add_totals(s, nullptr);
+    BatchOutcome out = plain();
+    out.accumulated.resize(systems);
+    for (std::size_t s = 0; s < systems; ++s) out.accumulated[s].assign(sums_[s].begin(), sums_[s].end());
+    return out;
   }
 
   // BiCGStab rounds, each verified by plain checks with the same error estimate; a round that
@@ -207,6 +226,7 @@ class BatchRunner {
 
   // Runs `chunk` steps and a measure; true when every system's estimate has been below tolerance.
   bool check(int chunk, int planned) {
+    if (!sums_.empty()) return check_pulses(chunk, planned);
     if (sourced_) {
       sourced_steps(*solver_.krylov_vectors(), chunk);
       solver_.measure(residuals_);
@@ -215,6 +235,44 @@ class BatchRunner {
     }
     out_.steps += chunk;
     return record_checks(chunk, planned, residuals_, false);
+  }
+
+  // pulses(): `chunk` steps, each pulse's totals added; the check sees the running sums and their
+  // change over the chunk.
+  bool check_pulses(int chunk, int planned) {
+    const std::size_t systems = sums_.size();
+    changes_.assign(systems, std::vector<double>(sums_[0].size(), 0.0));
+    std::vector<bool> finite(systems, true);
+    for (int k = 0; k < chunk; ++k) {
+      solver_.step_and_measure(1, residuals_);
+      for (std::size_t s = 0; s < systems; ++s) {
+        add_totals(s, &changes_[s]);
+        finite[s] = finite[s] && residuals_[s].finite;
+      }
+    }
+    out_.steps += chunk;
+    std::vector<Residual> checks(systems);
+    for (std::size_t s = 0; s < systems; ++s) {
+      Residual& r = checks[s];
+      for (std::size_t i = 0; i < sums_[s].size(); ++i) {
+        const double v = sums_[s][i], d = changes_[s][i];
+        r.diff_sq += d * d;
+        r.total_sq += v * v;
+        r.diff_max = std::max(r.diff_max, std::abs(d));
+        r.total_max = std::max(r.total_max, std::abs(v));
+      }
+      r.finite = finite[s];
+    }
+    return record_checks(chunk, planned, checks, false);
+  }
+
+  // Adds system s's totals of the last measure to its running sum (and to `change`).
+  void add_totals(std::size_t s, std::vector<double>* change) {
+    solver_.read_totals(static_cast<int>(s), buffer_.data());
+    for (std::size_t i = 0; i < buffer_.size(); ++i) {
+      sums_[s][i] += buffer_[i];
+      if (change) (*change)[i] += buffer_[i];
+    }
   }
 
   // Records one check per system (`residuals`, `interval` steps after the previous one) and
@@ -262,6 +320,8 @@ class BatchRunner {
   std::vector<Residual> residuals_;
   Clock::time_point t0_;
   bool sourced_ = false;
+  std::vector<std::vector<double>> sums_, changes_;  // pulses()
+  std::vector<float> buffer_;
 };
 
 // The materials' parameters as given, for entry `channel` of mp.channels.
@@ -474,12 +534,24 @@ std::vector<SystemRef> system_queue(const ModelPlan& mp) {
 }
 
 // The end of the batch that starts at `start`: up to `capacity` systems, but never a solution's
-// channels split across two batches when they fit in one.
-std::size_t batch_end(const std::vector<SystemRef>& queue, std::size_t start, int capacity, int channels) {
+// channels split across two batches when they fit in one. `alone` (a solution index, or -1)
+// takes a batch of its own: first_collision's B00, whose systems start from a source.
+std::size_t batch_end(const std::vector<SystemRef>& queue, std::size_t start, int capacity, int channels,
+                      int alone = -1) {
   std::size_t end = std::min(queue.size(), start + static_cast<std::size_t>(capacity));
   if (end < queue.size() && channels <= capacity)
     while (end > start + 1 && queue[end].solution == queue[end - 1].solution) --end;
+  for (std::size_t q = start + 1; q < end; ++q)
+    if ((queue[q].solution == alone) != (queue[start].solution == alone)) return q;
   return end;
+}
+
+// The solution first_collision solves from a source (B00), or -1.
+int sourced_solution(const ModelPlan& mp) {
+  if (!(mp.model.calibrated && mp.model.first_collision)) return -1;
+  for (std::size_t s = 0; s < mp.solutions.size(); ++s)
+    if (mp.solutions[s].index == 0 && !mp.solutions[s].derived) return static_cast<int>(s);
+  return -1;
 }
 
 // Adds system s of a finished batch (its channel's totals, estimate and time share) to its solution.
@@ -540,7 +612,7 @@ std::vector<std::vector<int>> solution_batches(const ModelPlan& mp, const Backen
   const std::vector<SystemRef> queue = system_queue(mp);
   std::vector<std::vector<int>> batches;
   for (std::size_t start = 0; start < queue.size();) {
-    const std::size_t end = batch_end(queue, start, capacity, channels);
+    const std::size_t end = batch_end(queue, start, capacity, channels, sourced_solution(mp));
     std::vector<int> b;
     for (std::size_t q = start; q < end; ++q) {
       const int index = mp.solutions[static_cast<std::size_t>(queue[q].solution)].index;
@@ -638,9 +710,9 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   AmbientSum ambient(mp, /*wanted=*/!subset);
   std::vector<PartialSolution> partial(mp.solutions.size());
   const bool first_collision = corrects_uncollided(mp);
-  if (first_collision && mp.steps.method != SolverMethod::BiCGStab)
+  if (first_collision && mp.steps.method == SolverMethod::Dsa)
     throw_invalid("model '" + mp.spec->name + "': calibration first_collision solves B00's scattered light from a "
-                  "volume source, which needs solver method \"bicgstab\"");
+                  "volume source, which solver method dsa does not take; use plain or bicgstab");
   if (first_collision && !solver->state_access())
     throw Error(ErrorCategory::Unavailable, "calibration first_collision: the " + backend.name() +
                                                 " backend offers no state access to hold its source");
@@ -656,7 +728,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   }
 
   for (std::size_t start = 0; start < queue.size();) {
-    const std::size_t end = batch_end(queue, start, capacity, channels);
+    const std::size_t end = batch_end(queue, start, capacity, channels, sourced_solution(mp));
     const int first = mp.solutions[static_cast<std::size_t>(queue[start].solution)].index;
     if (subset && std::find(opt.solutions.begin(), opt.solutions.end(), first) == opt.solutions.end()) {
       start = end;  // another unit's batch (whole batches only: checked above)
@@ -691,6 +763,7 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     const bool sourced = first_collision && batch_solutions.front()->index == 0;  // Krylov: one system a batch
     const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov(sourced)
                                  : mp.steps.method == SolverMethod::Dsa    ? runner.dsa(batch_corrections, dsa_settings)
+                                 : sourced                                 ? runner.pulses()
                                                                            : runner.plain();
     const double batch_seconds = runner.seconds();
     observer.memory_in_use(mp, solver->bytes_in_use());
@@ -700,20 +773,27 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     for (std::size_t s = 0; s < batch.size(); ++s) {
       PartialSolution& p = partial[static_cast<std::size_t>(queue[start + s].solution)];
       std::vector<float> totals(mp.lattice.dims.count());
-      solver->read_totals(static_cast<int>(s), totals.data());
+      if (!outcome.accumulated.empty())
+        totals = outcome.accumulated[s];
+      else
+        solver->read_totals(static_cast<int>(s), totals.data());
       add_channel(p, outcome, s, batch_seconds / static_cast<double>(batch.size()), std::move(totals),
                   batch[s].channel, warm_now);
       if (p.channels_done < channels) continue;
       SolutionResult r = std::move(p.result);
       r.converged = !fixed && r.converged;
       for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
-      if (first_collision && r.plan.index == 0)  // the scattered light solved; the uncollided light exactly
+      if (first_collision && r.plan.index == 0) {  // the scattered light solved; the uncollided light exactly
+        std::vector<std::array<double, kMaxMaterials>> sigma_t;
+        for (int ch = 0; ch < channels; ++ch) sigma_t.push_back(model_sigma_t(mp, ch));
+        const auto exact = exact_uncollided(mp.lattice, sigma_t, base_solution_uncollided(0));
         add_per_channel(mp, r, [&](int ch) {
-          std::vector<double> add = exact_uncollided(mp.lattice, model_sigma_t(mp, ch), base_solution_uncollided(0));
+          std::vector<double> add = exact[static_cast<std::size_t>(ch)];
           const std::vector<double>& credit = credit_of(queue[start + s].solution, ch);
           for (std::size_t i = 0; i < add.size(); ++i) add[i] += credit[i];
           return add;
         });
+      }
       p = PartialSolution{};
       ambient.add(r);
       observer.solution_done(mp, r);

@@ -1,5 +1,6 @@
 #include "lblight/solve/first_collision.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -13,12 +14,15 @@ using namespace d3q19;
 
 constexpr int kPointsPerBeam = 16;
 
-// Optical depth from point (x, y, z) + offset (offset within the node's voxel, [-1/2, 1/2) per
-// axis) back against `travel` to the surface of the interior voxels' box [1/2, n - 3/2], where the
-// reference's light enters (docs/truth.md sec. 1): a voxel walk (Amanatides and Woo), exact for
-// the piecewise-constant medium.
-double depth_to_surface(const Dims& d, const std::vector<double>& mu, int x, int y, int z,
-                        const std::array<double, 3>& offset, const std::array<double, 3>& travel) {
+// The path from point (x, y, z) + offset (offset within the node's voxel, [-1/2, 1/2) per axis)
+// back against `travel` to the surface of the interior voxels' box [1/2, n - 3/2], where the
+// reference's light enters (docs/truth.md sec. 1), as density x length per material: every
+// channel's optical depth from one voxel walk (Amanatides and Woo; exact for the
+// piecewise-constant medium). Stops once `floor` . length passes 40 (exp(-40): nothing arrives).
+using Lengths = std::array<double, kMaxMaterials>;
+Lengths path_to_surface(const LatticeGeometry& g, int x, int y, int z, const std::array<double, 3>& offset,
+                        const std::array<double, 3>& travel, const Lengths& floor) {
+  const Dims& d = g.dims;
   const int hi[3] = {d.nx - 2, d.ny - 2, d.nz - 2};
   int v[3] = {x, y, z}, step[3];
   double next[3], delta[3];
@@ -28,15 +32,19 @@ double depth_to_surface(const Dims& d, const std::vector<double>& mu, int x, int
     delta[k] = dir != 0 ? 1.0 / std::abs(dir) : std::numeric_limits<double>::infinity();
     next[k] = dir != 0 ? (dir > 0 ? 0.5 - o : 0.5 + o) * delta[k] : delta[k];
   }
-  double tau = 0, t = 0;
+  Lengths len{};
+  double t = 0, least = 0;
   for (;;) {
     const int k = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2) : (next[1] <= next[2] ? 1 : 2);
-    tau += mu[d.index(v[0], v[1], v[2])] * (next[k] - t);
-    if (tau > 40.0) return tau;  // exp(-40): nothing arrives
+    const std::size_t i = d.index(v[0], v[1], v[2]);
+    const double add = g.density[i] * (next[k] - t);
+    len[g.material[i]] += add;
+    least += floor[g.material[i]] * add;
+    if (least > 40.0) return len;
     t = next[k];
     next[k] += delta[k];
     v[k] += step[k];
-    if (v[k] < 1 || v[k] > hi[k]) return tau;
+    if (v[k] < 1 || v[k] > hi[k]) return len;
   }
 }
 
@@ -95,32 +103,50 @@ UncollidedLight base_solution_uncollided(int index) {
   return l;
 }
 
-std::vector<double> exact_uncollided(const LatticeGeometry& g, const std::array<double, kMaxMaterials>& sigma_t,
-                                     const UncollidedLight& light, int directions) {
+std::vector<std::vector<double>> exact_uncollided(const LatticeGeometry& g,
+                                                   const std::vector<std::array<double, kMaxMaterials>>& sigma_t,
+                                                   const UncollidedLight& light, int directions) {
   const Dims& d = g.dims;
-  std::vector<double> mu(d.count());
-  for (std::size_t i = 0; i < mu.size(); ++i) mu[i] = g.density[i] * sigma_t[g.material[i]];
+  const std::size_t channels = sigma_t.size();
+  Lengths floor{};
+  for (std::size_t m = 0; m < floor.size(); ++m) {
+    floor[m] = std::numeric_limits<double>::infinity();
+    for (const auto& s : sigma_t) floor[m] = std::min(floor[m], s[m]);
+  }
   const auto beams = all_beams(light, directions);
   const double iso_weight = light.isotropic_fluence / directions;
-  std::vector<double> phi(d.count(), 0.0);
+  std::vector<std::vector<double>> phi(channels, std::vector<double>(d.count(), 0.0));
 #pragma omp parallel for schedule(dynamic)
-  for (int z = 1; z < d.nz - 1; ++z)
+  for (int z = 1; z < d.nz - 1; ++z) {
+    std::vector<double> v(channels), sum(channels);
     for (int y = 1; y < d.ny - 1; ++y)
       for (int x = 1; x < d.nx - 1; ++x) {
-        const std::size_t i = d.index(x, y, z);
         // The voxel's mean: a beam at kPointsPerBeam points of the voxel; isotropic light at one
         // point per direction, each direction its own (a joint low-discrepancy set).
-        double v = 0;
+        std::fill(v.begin(), v.end(), 0.0);
         int point = 0;
         for (const auto& b : beams) {
           const int points = b.second == iso_weight && iso_weight != 0 ? 1 : kPointsPerBeam;
-          double sum = 0;
-          for (int k = 0; k < points; ++k) sum += std::exp(-depth_to_surface(d, mu, x, y, z, voxel_point(point++), b.first));
-          v += b.second * sum / points;
+          std::fill(sum.begin(), sum.end(), 0.0);
+          for (int k = 0; k < points; ++k) {
+            const Lengths len = path_to_surface(g, x, y, z, voxel_point(point++), b.first, floor);
+            for (std::size_t c = 0; c < channels; ++c) {
+              double tau = 0;
+              for (std::size_t m = 0; m < len.size(); ++m) tau += sigma_t[c][m] * len[m];
+              sum[c] += std::exp(-tau);
+            }
+          }
+          for (std::size_t c = 0; c < channels; ++c) v[c] += b.second * sum[c] / points;
         }
-        phi[i] = v;
+        for (std::size_t c = 0; c < channels; ++c) phi[c][d.index(x, y, z)] = v[c];
       }
+  }
   return phi;
+}
+
+std::vector<double> exact_uncollided(const LatticeGeometry& g, const std::array<double, kMaxMaterials>& sigma_t,
+                                     const UncollidedLight& light, int directions) {
+  return std::move(exact_uncollided(g, std::vector<std::array<double, kMaxMaterials>>{sigma_t}, light, directions)[0]);
 }
 
 FirstCollisionSource first_collision_source(const LatticeGeometry& g, const std::array<OpticalParams, kMaxMaterials>& optics,

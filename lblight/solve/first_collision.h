@@ -25,7 +25,7 @@ struct UncollidedLight {
 UncollidedLight base_solution_uncollided(int index);  // B_j: a unit beam along n_j; B00: isotropic, 18
 
 // Directions over the sphere (equal weights) that isotropic light is marched along.
-inline constexpr int kUncollidedDirections = 256;
+inline constexpr int kUncollidedDirections = 128;
 
 // The light the uncollided beams of `boundary` scatter at their first collision, as the source
 // of a lattice solve of the scattered light alone (boundary values 0; solve/krylov.h with the
@@ -42,7 +42,12 @@ FirstCollisionSource first_collision_source(const LatticeGeometry& lattice,
                                             const LbModel& model, const ChannelMaterials& channel,
                                             const std::array<double, 19>& boundary);
 
-// The exact uncollided fluence alone, voxel-averaged (for tests and diagnostics).
+// The exact uncollided fluence, voxel-averaged, of each channel (sigma_t[c][material], delta-M
+// scaled where the model scales it) from one set of voxel walks.
+std::vector<std::vector<double>> exact_uncollided(const LatticeGeometry& lattice,
+                                                   const std::vector<std::array<double, kMaxMaterials>>& sigma_t,
+                                                   const UncollidedLight& light, int directions = kUncollidedDirections);
+// One channel.
 std::vector<double> exact_uncollided(const LatticeGeometry& lattice, const std::array<double, kMaxMaterials>& sigma_t,
                                      const UncollidedLight& light, int directions = kUncollidedDirections);
 
