@@ -29,7 +29,7 @@ struct UnitEstimate {
 };
 
 // The host memory a unit's task needs: on the CPU the solver's (plan_cost), plus
-// kHostBytesPerLatticeNode and the output's grid buffers per node, plus the process itself.
+// host_bytes_per_node (solve/plan.h) and the output's grid buffers per node, plus the process itself.
 double unit_memory_bytes(const ModelPlan& model, const Backend& sizing_backend, bool solver_on_host);
 
 struct SlurmSettings {

@@ -195,7 +195,7 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
   const Dims& gd = mp.grid.dims;
   const int gap = mp.ground.on ? mp.ground.gap : -1;
   const Dims ld{gd.nx + 2 * spec.margin, gd.ny + 2 * spec.margin, gd.nz + spec.margin + layers_below(spec.margin, gap)};
-  check_host_memory(static_cast<double>(ld.count()) * kHostBytesPerLatticeNode,
+  check_host_memory(static_cast<double>(ld.count()) * host_bytes_per_node(scene.solver.model),
                     "model '" + spec.name + "' (a " + std::to_string(ld.nx) + "x" + std::to_string(ld.ny) + "x" +
                         std::to_string(ld.nz) + " lattice)",
                     "lower the resolution, crop the density source or lower margin", {scene.file.string(), spec.json_path, {}});
@@ -463,6 +463,10 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
                                      [&](const ModelPlan& mp) { return mp.spec->name != *ov.only; }),
                       plan.models.end());
   return plan;
+}
+
+double host_bytes_per_node(const LbModel& model) {
+  return kHostBytesPerLatticeNode + (model.calibrated && model.first_collision ? kFirstCollisionBytesPerNode : 0.0);
 }
 
 }  // namespace lblight

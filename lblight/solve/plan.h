@@ -20,6 +20,13 @@ namespace lblight {
 // Host memory any bake of a lattice needs per node besides its solver: density and material (5
 // bytes), one solution's totals in 3 channels (12) and B00's sum when derived (24).
 inline constexpr double kHostBytesPerLatticeNode = 41.0;
+// And with calibration first_collision (solve/first_collision.h): B00's source as a state (19
+// doubles), a beam's transmittance, its credits and exact uncollided light in 3 channels, and the
+// running sums and changes of plain iteration's pulses (3 systems).
+inline constexpr double kFirstCollisionBytesPerNode = 8.0 * (19 + 1 + 3 + 3 + 6);
+
+// Host bytes per lattice node of a bake of `mp` (kHostBytesPerLatticeNode, and first_collision's).
+double host_bytes_per_node(const LbModel& model);
 
 // The largest boundary value float16 storage takes (its largest finite value is 65504; light in
 // the lattice stays near the boundary's, and the margin keeps sums and overshoot finite).
