@@ -111,6 +111,7 @@ int run_validate(const ValidateArgs& args) {
     text << "  solutions (" << mp.solutions.size() << "): " << sols << "; " << mp.channels.size()
          << " distinct channel(s) each\n";
     text << savings_lines(mp);
+    text << "  LB model: " << mp.model.name() << " (docs/model.md" << (mp.model.calibrated ? " sec. 8" : "") << ")\n";
     text << "  steps: " << to_string(mp.steps.mode);
     if (mp.steps.mode == IterationMode::Auto)
       text << ", tolerance " << mp.steps.tolerance << ", check every " << mp.steps.check_interval << ", min "
