@@ -61,7 +61,7 @@ std::vector<UnitEstimate> estimate_units(const BakePlan& plan, const SubmitArgs&
     u.hash = unit_hash(plan, mp, backend_name);
     u.memory_bytes = unit_memory_bytes(mp, *sizing, backend_name == "cpu") +
                      (mp.role == PlanRole::Model ? 0.0 : model_grid_bytes);
-    u.seconds = plan_cost(mp, *sizing).seconds(ups);
+    u.seconds = plan_cost(mp, *sizing).seconds(ups, host_cores());
     units.push_back(u);
   }
   return units;

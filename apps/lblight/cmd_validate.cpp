@@ -11,6 +11,7 @@
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
+#include "lblight/core/system_info.h"
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/solve/plan_cost.h"
 #include "lblight/solve/throughput.h"
@@ -87,7 +88,7 @@ int run_validate(const ValidateArgs& args) {
     const Dims& ld = mp.lattice.dims;
     const PlanCost cost = plan_cost(mp, *backend);
     const double memory = static_cast<double>(cost.device_bytes);
-    const double seconds = cost.seconds(ups);
+    const double seconds = cost.seconds(ups, host_cores());
     total_seconds += seconds;
 
     std::string sols;

@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace lblight {
@@ -191,5 +193,7 @@ std::size_t host_last_level_cache_bytes() {
 #endif
   return l3 > 0 ? static_cast<std::size_t>(l3) : (32u << 20);
 }
+
+int host_cores() { return std::max(1, static_cast<int>(std::thread::hardware_concurrency())); }
 
 }  // namespace lblight

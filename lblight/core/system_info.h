@@ -26,6 +26,7 @@ MemoryLimit host_memory_limit();
 void check_host_memory(double bytes, const std::string& what, const std::string& reduce, const Location& where = {});
 std::string gib(double bytes);  // "2.50 GiB"
 std::string host_cpu_model();
+int host_cores();  // hardware threads, at least 1
 std::string utc_timestamp();  // now, "2026-11-23T13:36:05Z"
 // The L3 that CPU 0 shares with its neighbours (sysfs; glibc's sysconf reports the whole
 // package's L3 on AMD: 384 MiB on a 12-CCD EPYC, of which a core reaches 32 MiB); 32 MiB when

@@ -36,6 +36,8 @@ struct LbModel {
   // of the lattice's own uncollided part (solve/first_collision.h). Base solutions only.
   bool first_collision = false;
 
+  bool first_collision_on() const { return calibrated && first_collision; }
+
   // "paper", "calibrated", or "calibrated (no path_length, ...; with path_absorption)": the
   // corrections that differ from the defaults
   std::string name() const;

@@ -494,6 +494,9 @@ SolverSpec read_solver(const JsonReader& r) {
     if (s.model.first_collision && s.method == SolverMethod::Dsa)
       c.fail("first_collision solves B00's scattered light from a volume source, which method dsa does not take; "
              "allowed: \"method\": \"plain\" or \"bicgstab\"", "first_collision");
+    if (s.model.first_collision && !(s.model.isotropic_ambient && s.model.remove_absorbed))
+      c.fail("first_collision builds on isotropic_ambient (B00 is isotropic light) and remove_absorbed (no f_0 "
+             "reservoir to feed); switch those on or first_collision off", "first_collision");
   }
   return s;
 }

@@ -20,6 +20,14 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 
+// One node's total and its change since the last check, into a check's sums and maxima.
+void add_node(Residual& r, double total, double change) {
+  r.diff_sq += change * change;
+  r.total_sq += total * total;
+  r.diff_max = std::max(r.diff_max, std::abs(change));
+  r.total_max = std::max(r.total_max, std::abs(total));
+}
+
 // How one batch ended.
 struct BatchOutcome {
   int steps = 0;
@@ -74,14 +82,20 @@ class BatchRunner {
     return std::move(out_);
   }
 
+  // What each system's stored totals add to its state's (first_collision: the exact uncollided
+  // light and the credit); the checks and the stop see the sums.
+  void set_offsets(std::vector<std::vector<double>> offsets) { offsets_ = std::move(offsets); }
+
   // Plain iteration from a volume source s held as the systems' states (first_collision, boundary
   // values 0): stepped alone the state is the pulse A^k s, and plain iteration x <- A x + s from
   // x = s is the running sum of the pulses, so its totals are the running sum of the pulses'
   // totals, taken after every step. The same checks and stop as plain(); out.accumulated holds the
-  // totals.
+  // totals (with the offsets).
   BatchOutcome pulses() {
     const std::size_t systems = out_.monitors.size(), n = mp_.lattice.dims.count();
-    sums_.assign(systems, std::vector<double>(n, 0.0));
+    sums_ = offsets_;
+    sums_.resize(systems);
+    for (auto& v : sums_) v.resize(n, 0.0);
     buffer_.resize(n);
     solver_.measure(residuals_);
     for (std::size_t s = 0; s < systems; ++s) add_totals(s, nullptr);
@@ -113,8 +127,18 @@ class BatchRunner {
       out_.steps += kr.steps;
       out_.krylov_iterations += kr.iterations;
       out_.krylov_residual = kr.residual;
-      if (verify()) return std::move(out_);
+      if (verify()) break;
       residual_tolerance *= 0.1;
+    }
+    if (!offsets_.empty()) {  // the stored totals: the state's and the offsets
+      out_.accumulated.resize(offsets_.size());
+      buffer_.resize(mp_.lattice.dims.count());
+      for (std::size_t s = 0; s < offsets_.size(); ++s) {
+        solver_.read_totals(static_cast<int>(s), buffer_.data());
+        out_.accumulated[s].resize(buffer_.size());
+        for (std::size_t i = 0; i < buffer_.size(); ++i)
+          out_.accumulated[s][i] = static_cast<float>(buffer_[i] + offsets_[s][i]);
+      }
     }
     return std::move(out_);
   }
@@ -155,11 +179,8 @@ class BatchRunner {
         Residual r = residuals_[s];  // finite flag and reservoir deficit of the last step
         r.diff_sq = r.total_sq = r.diff_max = r.total_max = 0;
         for (std::size_t i = 0; i < n; ++i) {
-          const double v = static_cast<double>(after[s][i]) + added[i], d = v - last[s][i];
-          r.diff_sq += d * d;
-          r.total_sq += v * v;
-          r.diff_max = std::max(r.diff_max, std::abs(d));
-          r.total_max = std::max(r.total_max, std::abs(v));
+          const double v = static_cast<double>(after[s][i]) + added[i];
+          add_node(r, v, v - last[s][i]);
           last[s][i] = v;
         }
         cycle[s] = r;
@@ -230,6 +251,13 @@ class BatchRunner {
     if (sourced_) {
       sourced_steps(*solver_.krylov_vectors(), chunk);
       solver_.measure(residuals_);
+      // the change is the state's; the size it is measured against includes the offsets
+      buffer_.resize(mp_.lattice.dims.count());
+      for (std::size_t s = 0; s < offsets_.size(); ++s) {
+        solver_.read_totals(static_cast<int>(s), buffer_.data());
+        residuals_[s].total_sq = residuals_[s].total_max = 0;
+        for (std::size_t i = 0; i < buffer_.size(); ++i) add_node(residuals_[s], buffer_[i] + offsets_[s][i], 0.0);
+      }
     } else {
       solver_.step_and_measure(chunk, residuals_);
     }
@@ -253,15 +281,8 @@ class BatchRunner {
     out_.steps += chunk;
     std::vector<Residual> checks(systems);
     for (std::size_t s = 0; s < systems; ++s) {
-      Residual& r = checks[s];
-      for (std::size_t i = 0; i < sums_[s].size(); ++i) {
-        const double v = sums_[s][i], d = changes_[s][i];
-        r.diff_sq += d * d;
-        r.total_sq += v * v;
-        r.diff_max = std::max(r.diff_max, std::abs(d));
-        r.total_max = std::max(r.total_max, std::abs(v));
-      }
-      r.finite = finite[s];
+      for (std::size_t i = 0; i < sums_[s].size(); ++i) add_node(checks[s], sums_[s][i], changes_[s][i]);
+      checks[s].finite = finite[s];
     }
     return record_checks(chunk, planned, checks, false);
   }
@@ -320,7 +341,7 @@ class BatchRunner {
   std::vector<Residual> residuals_;
   Clock::time_point t0_;
   bool sourced_ = false;
-  std::vector<std::vector<double>> sums_, changes_;  // pulses()
+  std::vector<std::vector<double>> offsets_, sums_, changes_;  // first_collision
   std::vector<float> buffer_;
 };
 
@@ -341,19 +362,6 @@ std::array<double, kMaxMaterials> model_sigma_t(const ModelPlan& mp, int channel
   for (std::size_t m = 0; m < sigma_t.size(); ++m) sigma_t[m] = model_params(params[m], mp.model).sigma_t();
   return sigma_t;
 }
-
-// Adds per_channel(channel) to the totals of every colour channel solved by it.
-template <typename F>
-void add_per_channel(const ModelPlan& mp, SolutionResult& r, F&& per_channel) {
-  for (int ch = 0; ch < static_cast<int>(mp.channels.size()); ++ch) {
-    const std::vector<double> add = per_channel(ch);
-    for (int c = 0; c < kChannels; ++c)
-      if (mp.channel_of[static_cast<std::size_t>(c)] == ch)
-        for (std::size_t i = 0; i < add.size(); ++i) r.totals[c][i] += static_cast<float>(add[i]);
-  }
-}
-
-bool corrects_uncollided(const ModelPlan& mp) { return mp.model.calibrated && mp.model.first_collision; }
 
 struct SystemRef {
   int solution;  // index into mp.solutions
@@ -546,9 +554,9 @@ std::size_t batch_end(const std::vector<SystemRef>& queue, std::size_t start, in
   return end;
 }
 
-// The solution first_collision solves from a source (B00), or -1.
-int sourced_solution(const ModelPlan& mp) {
-  if (!(mp.model.calibrated && mp.model.first_collision)) return -1;
+// The solution first_collision solves from a source (B00, mp.solutions' index), or -1.
+int first_collision_solution(const ModelPlan& mp) {
+  if (!mp.model.first_collision_on()) return -1;
   for (std::size_t s = 0; s < mp.solutions.size(); ++s)
     if (mp.solutions[s].index == 0 && !mp.solutions[s].derived) return static_cast<int>(s);
   return -1;
@@ -612,7 +620,7 @@ std::vector<std::vector<int>> solution_batches(const ModelPlan& mp, const Backen
   const std::vector<SystemRef> queue = system_queue(mp);
   std::vector<std::vector<int>> batches;
   for (std::size_t start = 0; start < queue.size();) {
-    const std::size_t end = batch_end(queue, start, capacity, channels, sourced_solution(mp));
+    const std::size_t end = batch_end(queue, start, capacity, channels, first_collision_solution(mp));
     std::vector<int> b;
     for (std::size_t q = start; q < end; ++q) {
       const int index = mp.solutions[static_cast<std::size_t>(queue[q].solution)].index;
@@ -692,10 +700,8 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   observer.model_started(mp, backend, solver->bytes_in_use(), so.layout);
 
   const std::vector<SystemRef> queue = system_queue(mp);
-  // (first_collision's B00 starts from its source, not from another frame's light)
-  StateAccess* warm_state = opt.warm && mp.steps.mode == IterationMode::Auto && !corrects_uncollided(mp)
-                                ? state_access_for_warm_start(*solver, backend)
-                                : nullptr;
+  StateAccess* warm_state =
+      opt.warm && mp.steps.mode == IterationMode::Auto ? state_access_for_warm_start(*solver, backend) : nullptr;
   // States of another lattice (or plan) cannot start this one: its systems start from zero.
   const bool warm_now = warm_state && opt.warm->dims == mp.lattice.dims && opt.warm->states.size() == queue.size() &&
                         std::none_of(opt.warm->states.begin(), opt.warm->states.end(),
@@ -709,18 +715,14 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   const bool fixed = mp.steps.mode != IterationMode::Auto;
   AmbientSum ambient(mp, /*wanted=*/!subset);
   std::vector<PartialSolution> partial(mp.solutions.size());
-  const bool first_collision = corrects_uncollided(mp);
-  if (first_collision && mp.steps.method == SolverMethod::Dsa)
-    throw_invalid("model '" + mp.spec->name + "': calibration first_collision solves B00's scattered light from a "
-                  "volume source, which solver method dsa does not take; use plain or bicgstab");
-  if (first_collision && !solver->state_access())
+  // first_collision: B00 is solved from a source, in a batch of its own (first_collision.h)
+  const int sourced_solution = first_collision_solution(mp);
+  if (sourced_solution >= 0 && mp.steps.method == SolverMethod::Dsa)
+    throw std::logic_error("first_collision with method dsa: refused by plan_steps");
+  if (sourced_solution >= 0 && !solver->state_access())
     throw Error(ErrorCategory::Unavailable, "calibration first_collision: the " + backend.name() +
-                                                " backend offers no state access to hold its source");
-  // first_collision: per solution and channel, what the voxel average credits to B00 (first_collision.h)
-  std::vector<std::vector<double>> credits(mp.solutions.size() * mp.channels.size());
-  auto credit_of = [&](int solution, int ch) -> std::vector<double>& {
-    return credits[static_cast<std::size_t>(solution) * mp.channels.size() + static_cast<std::size_t>(ch)];
-  };
+                                                " backend offers no state access to hold its source; switch "
+                                                "first_collision off or use the cpu or cuda backend");
   for (std::size_t s = 0; s < partial.size(); ++s) {
     partial[s].result.plan = mp.solutions[s];
     partial[s].result.converged = true;  // until a channel does not
@@ -728,7 +730,8 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
   }
 
   for (std::size_t start = 0; start < queue.size();) {
-    const std::size_t end = batch_end(queue, start, capacity, channels, sourced_solution(mp));
+    const std::size_t end = batch_end(queue, start, capacity, channels, sourced_solution);
+    const bool sourced = queue[start].solution == sourced_solution;
     const int first = mp.solutions[static_cast<std::size_t>(queue[start].solution)].index;
     if (subset && std::find(opt.solutions.begin(), opt.solutions.end(), first) == opt.solutions.end()) {
       start = end;  // another unit's batch (whole batches only: checked above)
@@ -738,29 +741,43 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     std::vector<const SolutionPlan*> batch_solutions;
     for (std::size_t q = start; q < end; ++q) {
       const SolutionPlan* sp = &mp.solutions[static_cast<std::size_t>(queue[q].solution)];
-      // first_collision: B00's light enters through its source only (first_collision.h)
-      batch.push_back({queue[q].channel, first_collision && sp->index == 0 ? std::array<double, 19>{}
-                                                                            : system_boundary(mp, *sp, queue[q].channel)});
+      // first_collision: B00's light enters through its source only
+      const int ch = queue[q].channel;
+      batch.push_back({ch, sourced ? std::array<double, 19>{} : system_boundary(mp, *sp, ch)});
       if (batch_solutions.empty() || batch_solutions.back() != sp) batch_solutions.push_back(sp);
     }
 
     solver->reset(batch);
-    if (first_collision)
-      for (std::size_t q = start; q < end; ++q) {
-        const SolutionPlan& sp = mp.solutions[static_cast<std::size_t>(queue[q].solution)];
-        const int ch = queue[q].channel;
-        if (sp.index != 0) continue;
+    // first_collision: the sources as the states, and what the stored totals add to the lattice's
+    // (the exact uncollided light and the credit; the boundary's value on the boundary layer)
+    std::vector<std::vector<double>> offsets;
+    if (sourced) {
+      std::vector<std::array<double, kMaxMaterials>> sigma_t;
+      for (const SystemSpec& spec : batch) sigma_t.push_back(model_sigma_t(mp, spec.channel));
+      offsets = exact_uncollided(mp.lattice, sigma_t, base_solution_uncollided(0), kUncollidedDirections, ctx);
+      const SolutionPlan& sp = *batch_solutions.front();
+      const Dims& d = mp.lattice.dims;
+      for (std::size_t s = 0; s < batch.size(); ++s) {
+        const int ch = batch[s].channel;
         FirstCollisionSource src = first_collision_source(mp.lattice, channel_params(mp, ch), mp.model,
                                                           mp.channels[static_cast<std::size_t>(ch)], sp.boundary);
-        solver->state_access()->write_state(static_cast<int>(q - start), src.state);
-        credit_of(queue[q].solution, ch) = std::move(src.credit);
+        solver->state_access()->write_state(static_cast<int>(s), src.state);
+        const double open_air = boundary_total(system_boundary(mp, sp, ch));
+        for (int z = 0; z < d.nz; ++z)
+          for (int y = 0; y < d.ny; ++y)
+            for (int x = 0; x < d.nx; ++x) {
+              const std::size_t i = d.index(x, y, z);
+              offsets[s][i] = d.is_boundary(x, y, z) ? open_air : offsets[s][i] + src.credit[i];
+            }
       }
-    if (warm_now) start_warm(*solver, *warm_state, *opt.warm, start, batch.size(), state_buffer);
-    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size(), warm_now);
+    }
+    const bool warm_batch = warm_now && !sourced;  // a source is B00's start
+    if (warm_batch) start_warm(*solver, *warm_state, *opt.warm, start, batch.size(), state_buffer);
+    BatchRunner runner(mp, *solver, ctx, observer, batch_solutions, batch.size(), warm_batch);
+    runner.set_offsets(std::move(offsets));
     std::vector<DiffusionCorrection*> batch_corrections;
     for (const SystemSpec& spec : batch)
       if (!corrections.empty()) batch_corrections.push_back(corrections[static_cast<std::size_t>(spec.channel)].get());
-    const bool sourced = first_collision && batch_solutions.front()->index == 0;  // Krylov: one system a batch
     const BatchOutcome outcome = mp.steps.method == SolverMethod::BiCGStab ? runner.krylov(sourced)
                                  : mp.steps.method == SolverMethod::Dsa    ? runner.dsa(batch_corrections, dsa_settings)
                                  : sourced                                 ? runner.pulses()
@@ -778,22 +795,11 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
       else
         solver->read_totals(static_cast<int>(s), totals.data());
       add_channel(p, outcome, s, batch_seconds / static_cast<double>(batch.size()), std::move(totals),
-                  batch[s].channel, warm_now);
+                  batch[s].channel, warm_batch);
       if (p.channels_done < channels) continue;
       SolutionResult r = std::move(p.result);
       r.converged = !fixed && r.converged;
       for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
-      if (first_collision && r.plan.index == 0) {  // the scattered light solved; the uncollided light exactly
-        std::vector<std::array<double, kMaxMaterials>> sigma_t;
-        for (int ch = 0; ch < channels; ++ch) sigma_t.push_back(model_sigma_t(mp, ch));
-        const auto exact = exact_uncollided(mp.lattice, sigma_t, base_solution_uncollided(0));
-        add_per_channel(mp, r, [&](int ch) {
-          std::vector<double> add = exact[static_cast<std::size_t>(ch)];
-          const std::vector<double>& credit = credit_of(queue[start + s].solution, ch);
-          for (std::size_t i = 0; i < add.size(); ++i) add[i] += credit[i];
-          return add;
-        });
-      }
       p = PartialSolution{};
       ambient.add(r);
       observer.solution_done(mp, r);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
 #include "lblight/lattice/lb_model.h"
 
 namespace lblight {
@@ -29,13 +30,17 @@ inline constexpr int kUncollidedDirections = 128;
 
 // The light the uncollided beams of `boundary` scatter at their first collision, as the source
 // of a lattice solve of the scattered light alone (boundary values 0; solve/krylov.h with the
-// source as b). Beams run along the lattice directions the boundary feeds (f_j of `boundary`),
-// with exact transmittance exp(-rho sigma_t |c_j|) per node crossed; a node scatters the exact
+// source as b). It comes from the lattice's own 18 beams, not from the exact field (whose
+// directions are not the lattice's): they run along the lattice directions the boundary feeds
+// (f_j of `boundary`), with exact transmittance exp(-rho sigma_t |c_j|) per node crossed; a node scatters the exact
 // first-collision share 1 - exp(-rho sigma_t |c_j|) of what enters it (the lattice's own rule,
 // rho r_j, is first order in rho), spread over the directions as the material's Omega column j.
 struct FirstCollisionSource {
   std::vector<double> state;   // 19 x count, direction-major (StateAccess): arriving at step start
-  std::vector<double> credit;  // per node, half of what scattered there (the voxel average's share)
+  // Per node, half of what scattered there into the moving directions (the voxel average's share;
+  // 0 where the material's voxel_average is off). Nothing scatters into f_0: first_collision
+  // needs remove_absorbed, which empties Omega's row 0.
+  std::vector<double> credit;
 };
 FirstCollisionSource first_collision_source(const LatticeGeometry& lattice,
                                             const std::array<OpticalParams, kMaxMaterials>& optics,
@@ -46,7 +51,8 @@ FirstCollisionSource first_collision_source(const LatticeGeometry& lattice,
 // scaled where the model scales it) from one set of voxel walks.
 std::vector<std::vector<double>> exact_uncollided(const LatticeGeometry& lattice,
                                                    const std::vector<std::array<double, kMaxMaterials>>& sigma_t,
-                                                   const UncollidedLight& light, int directions = kUncollidedDirections);
+                                                   const UncollidedLight& light, int directions = kUncollidedDirections,
+                                                   const RunContext& ctx = {});
 // One channel.
 std::vector<double> exact_uncollided(const LatticeGeometry& lattice, const std::array<double, kMaxMaterials>& sigma_t,
                                      const UncollidedLight& light, int directions = kUncollidedDirections);

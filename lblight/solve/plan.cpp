@@ -170,10 +170,11 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
     mp.savings.cropped = mp.grid.dims.count() != full.count();
   }
   mp.ground.on = on_ground && scene.ground.enabled;
-  if (mp.ground.on && scene.solver.model.calibrated && scene.solver.model.first_collision)
-    throw_invalid("model '" + spec.name + "' stands on the ground, which calibration first_collision does not model "
-                  "(its exact uncollided light has no reflecting ground); switch first_collision off or set the "
-                  "model's \"ground\": false",
+  if (mp.ground.on && scene.solver.model.first_collision_on())
+    throw_invalid("lattice '" + spec.name + "' stands on the ground, which calibration first_collision does not "
+                  "model (its exact uncollided light has no reflecting ground); switch first_collision off, or let "
+                  "the models float (\"ground\": false; the coarse forest lattices stand on the scene's ground "
+                  "whenever it has one)",
                   {scene.file.string(), "/solver/calibration/first_collision", {}});
   if (mp.ground.on) {
     mp.ground.albedo = scene.ground.albedo;
@@ -239,7 +240,7 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
   if (scene.lighting.mode == LightingMode::Static) {
     if (ov.solutions) throw_invalid("--solutions applies to base lighting; this scene bakes static lighting",
                                     {scene.file.string(), "/lighting/mode", {}});
-    if (scene.solver.model.calibrated && scene.solver.model.first_collision)
+    if (scene.solver.model.first_collision_on())
       throw_invalid("calibration first_collision applies to the ambient solution B00 of \"mode\": \"base\"; this "
                     "scene bakes static lighting, which has none: switch first_collision off",
                     {scene.file.string(), "/solver/calibration/first_collision", {}});
@@ -270,7 +271,7 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
     // of B_0 is the sum of the directional solutions, so it need not be solved.
     // (Not with first_collision: B00's uncollided light is then exact, not the sum of 18 beams.)
     s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && mp.spec->margin >= 1 &&
-                !(scene.solver.model.calibrated && scene.solver.model.first_collision);
+                !(scene.solver.model.first_collision_on());
     mp.savings.ambient_from_sum = mp.savings.ambient_from_sum || s.derived;
     mp.solutions.push_back(s);
   }
@@ -304,6 +305,10 @@ void plan_steps(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov, Prec
                               " that leaves room for; light is linear in them: scale intensity and ambient down "
                               "and the result up, or use float32",
                           {scene.file.string(), "/lighting/intensity", {}});
+  if (st.method == SolverMethod::Dsa && scene.solver.model.first_collision_on())
+    throw_invalid("solver method dsa does not take calibration first_collision's volume source; use --method plain "
+                  "or bicgstab",
+                  {scene.file.string(), "/solver/method", {}});
   st.tolerance = ov.tolerance.value_or(scene.solver.tolerance);
   if (st.method == SolverMethod::Dsa && st.tolerance < kDsaMinTolerance)
     throw_invalid("solver method dsa reaches about " + message_number(kDsaMinTolerance) +
@@ -466,7 +471,7 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
 }
 
 double host_bytes_per_node(const LbModel& model) {
-  return kHostBytesPerLatticeNode + (model.calibrated && model.first_collision ? kFirstCollisionBytesPerNode : 0.0);
+  return kHostBytesPerLatticeNode + (model.first_collision_on() ? kFirstCollisionBytesPerNode : 0.0);
 }
 
 }  // namespace lblight

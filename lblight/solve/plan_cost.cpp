@@ -4,6 +4,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/solve/bake.h"
+#include "lblight/solve/first_collision.h"
 
 namespace lblight {
 
@@ -24,6 +25,8 @@ PlanCost plan_cost(const ModelPlan& mp, const Backend& backend) {
   c.device_bytes = backend.bytes_per_lattice(d) + static_cast<std::size_t>(c.batch_systems) * c.bytes_per_system;
   c.host_result_bytes = static_cast<double>(mp.solutions.size()) * 3.0 * static_cast<double>(d.count()) * sizeof(float);
   c.updates = static_cast<double>(mp.systems()) * mp.estimated_steps * static_cast<double>(d.interior_count());
+  if (mp.model.first_collision_on())
+    c.walk_voxel_steps = static_cast<double>(d.interior_count()) * kUncollidedDirections * 0.5 * d.longest();
   return c;
 }
 

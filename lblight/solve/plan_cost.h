@@ -3,6 +3,7 @@
 // with it.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <string>
 
@@ -18,10 +19,19 @@ struct PlanCost {
   std::size_t device_bytes = 0;     // the lattice plus one batch on the backend's device
   double host_result_bytes = 0;     // every solution's totals (3 channels of float) on the host
   double updates = 0;               // systems x estimated steps x interior nodes
+  // Host work besides: first_collision's voxel walks (nodes x directions x half the longest
+  // edge), at kWalkSecondsPerVoxel on one core.
+  double walk_voxel_steps = 0;
   bool fits = true;                 // false: not even one system fits the device's free memory
   std::string why_not;              // batch_capacity's message when it does not fit
   // Wall time at `updates_per_second` (0 when that is not known).
-  double seconds(double updates_per_second) const { return updates_per_second > 0 ? updates / updates_per_second : 0; }
+  // Wall time at `updates_per_second` (0 when that is not known), the walks on `host_cores`.
+  double seconds(double updates_per_second, int host_cores = 1) const {
+    if (!(updates_per_second > 0)) return 0;
+    return updates / updates_per_second + walk_voxel_steps * kWalkSecondsPerVoxel / std::max(1, host_cores);
+  }
+  // Measured: the 48^3 plant's walks, 128 directions, 3 channels (docs/model.md sec. 8).
+  static constexpr double kWalkSecondsPerVoxel = 4e-9;
 };
 
 PlanCost plan_cost(const ModelPlan& model, const Backend& backend);

@@ -157,7 +157,7 @@ Report make_report(const BakePlan& plan, const Backend& backend, const Backend& 
       throw_invalid("run '" + run.label() + "': the " + backend.name() + " backend does not store " +
                     to_string(run.precision) + "; allowed here: " + supported_precisions(backend));
   for (const ModelPlan& mp : plan.models)
-    if (mp.model.calibrated && mp.model.first_collision)
+    if (mp.model.first_collision_on())
       throw_invalid("model '" + mp.spec->name + "': report follows the iterates of the lattice state, and "
                     "calibration first_collision's B00 adds its exact uncollided light only at the end; switch "
                     "first_collision off for the report (lblight truth and compare --metric l2 measure it)");
