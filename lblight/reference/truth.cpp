@@ -5,15 +5,6 @@
 
 namespace lblight {
 
-ChannelOptics channel_optics(const ModelPlan& mp, int channel) {
-  int colour = 0;
-  while (colour < 2 && mp.channel_of[colour] != channel) ++colour;
-  ChannelOptics o{};
-  o[kMaterialMedium] = mp.spec->material.channel[colour];
-  o[kMaterialWood] = mp.spec->wood_material.channel[colour];
-  return o;
-}
-
 Illumination solution_light(const Scene& scene, const SolutionPlan& s) {
   if (s.index >= 0) return base_solution_light(s.index);
   const Vec3d& t = scene.lighting.toward_sun;

@@ -11,9 +11,6 @@
 
 namespace lblight {
 
-// The optical parameters per material of the model's distinct channel `channel`.
-ChannelOptics channel_optics(const ModelPlan& model, int channel);
-
 // What a planned solution means physically: base_solution_light for B00..B18, the scene's sun and
 // ambient (in the same lattice direction the plan decomposes) for a static bake.
 Illumination solution_light(const Scene& scene, const SolutionPlan& solution);

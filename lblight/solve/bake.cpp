@@ -345,24 +345,6 @@ class BatchRunner {
   std::vector<float> buffer_;
 };
 
-// The materials' parameters as given, for entry `channel` of mp.channels.
-std::array<OpticalParams, kMaxMaterials> channel_params(const ModelPlan& mp, int channel) {
-  int colour = 0;
-  while (colour < 2 && mp.channel_of[static_cast<std::size_t>(colour)] != channel) ++colour;
-  std::array<OpticalParams, kMaxMaterials> o{};
-  o[kMaterialMedium] = mp.spec->material.channel[static_cast<std::size_t>(colour)];
-  o[kMaterialWood] = mp.spec->wood_material.channel[static_cast<std::size_t>(colour)];
-  return o;
-}
-
-// The extinction each material's light is attenuated by under the plan's model (delta-M scaled).
-std::array<double, kMaxMaterials> model_sigma_t(const ModelPlan& mp, int channel) {
-  const auto params = channel_params(mp, channel);
-  std::array<double, kMaxMaterials> sigma_t{};
-  for (std::size_t m = 0; m < sigma_t.size(); ++m) sigma_t[m] = model_params(params[m], mp.model).sigma_t();
-  return sigma_t;
-}
-
 struct SystemRef {
   int solution;  // index into mp.solutions
   int channel;   // index into mp.channels
@@ -753,13 +735,13 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     std::vector<std::vector<double>> offsets;
     if (sourced) {
       std::vector<std::array<double, kMaxMaterials>> sigma_t;
-      for (const SystemSpec& spec : batch) sigma_t.push_back(model_sigma_t(mp, spec.channel));
+      for (const SystemSpec& spec : batch) sigma_t.push_back(model_extinction(channel_optics(mp, spec.channel), mp.model));
       offsets = exact_uncollided(mp.lattice, sigma_t, base_solution_uncollided(0), kUncollidedDirections, ctx);
       const SolutionPlan& sp = *batch_solutions.front();
       const Dims& d = mp.lattice.dims;
       for (std::size_t s = 0; s < batch.size(); ++s) {
         const int ch = batch[s].channel;
-        FirstCollisionSource src = first_collision_source(mp.lattice, channel_params(mp, ch), mp.model,
+        FirstCollisionSource src = first_collision_source(mp.lattice, channel_optics(mp, ch), mp.model,
                                                           mp.channels[static_cast<std::size_t>(ch)], sp.boundary);
         solver->state_access()->write_state(static_cast<int>(s), src.state);
         const double open_air = boundary_total(system_boundary(mp, sp, ch));

@@ -184,18 +184,22 @@ std::vector<double> exact_uncollided(const LatticeGeometry& g, const std::array<
   return std::move(exact_uncollided(g, one, light, directions, {})[0]);
 }
 
+std::array<double, kMaxMaterials> model_extinction(const std::array<OpticalParams, kMaxMaterials>& optics,
+                                                   const LbModel& model) {
+  std::array<double, kMaxMaterials> sigma_t{};
+  for (std::size_t m = 0; m < sigma_t.size(); ++m) sigma_t[m] = model_params(optics[m], model).sigma_t();
+  return sigma_t;
+}
+
 FirstCollisionSource first_collision_source(const LatticeGeometry& g,
                                             const std::array<OpticalParams, kMaxMaterials>& optics,
                                             const LbModel& model, const ChannelMaterials& channel,
                                             const std::array<double, 19>& boundary) {
   const Dims& d = g.dims;
   const std::size_t n = d.count();
-  std::array<double, kMaxMaterials> sigma_t{};
+  const std::array<double, kMaxMaterials> sigma_t = model_extinction(optics, model);
   std::array<std::array<double, kQ>, kMaxMaterials> removed{};
-  for (int m = 0; m < kMaxMaterials; ++m) {
-    sigma_t[static_cast<std::size_t>(m)] = model_params(optics[static_cast<std::size_t>(m)], model).sigma_t();
-    removed[static_cast<std::size_t>(m)] = model_removal(optics[static_cast<std::size_t>(m)], model);
-  }
+  for (std::size_t m = 0; m < removed.size(); ++m) removed[m] = model_removal(optics[m], model);
   FirstCollisionSource out;
   out.state.assign(kQ * n, 0.0);
   out.credit.assign(n, 0.0);

@@ -28,6 +28,11 @@ UncollidedLight base_solution_uncollided(int index);  // B_j: a unit beam along 
 // Directions over the sphere (equal weights) that isotropic light is marched along.
 inline constexpr int kUncollidedDirections = 128;
 
+// The extinction per material that light is attenuated by under `model` (delta-M scaled where
+// that correction is on: lb_model.h, model_params).
+std::array<double, kMaxMaterials> model_extinction(const std::array<OpticalParams, kMaxMaterials>& optics,
+                                                   const LbModel& model);
+
 // The light the uncollided beams of `boundary` scatter at their first collision, as the source
 // of a lattice solve of the scattered light alone (boundary values 0; solve/krylov.h with the
 // source as b). It comes from the lattice's own 18 beams, not from the exact field (whose

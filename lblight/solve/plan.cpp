@@ -271,7 +271,7 @@ void plan_solutions(ModelPlan& mp, const Scene& scene, const PlanOverrides& ov) 
     // of B_0 is the sum of the directional solutions, so it need not be solved.
     // (Not with first_collision: B00's uncollided light is then exact, not the sum of 18 beams.)
     s.derived = idx == 0 && all_directional && scene.lighting.ambient_from_sum && mp.spec->margin >= 1 &&
-                !(scene.solver.model.first_collision_on());
+                !scene.solver.model.first_collision_on();
     mp.savings.ambient_from_sum = mp.savings.ambient_from_sum || s.derived;
     mp.solutions.push_back(s);
   }
@@ -468,6 +468,15 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
                                      [&](const ModelPlan& mp) { return mp.spec->name != *ov.only; }),
                       plan.models.end());
   return plan;
+}
+
+std::array<OpticalParams, kMaxMaterials> channel_optics(const ModelPlan& mp, int channel) {
+  int colour = 0;
+  while (colour < 2 && mp.channel_of[static_cast<std::size_t>(colour)] != channel) ++colour;
+  std::array<OpticalParams, kMaxMaterials> o{};
+  o[kMaterialMedium] = mp.spec->material.channel[static_cast<std::size_t>(colour)];
+  o[kMaterialWood] = mp.spec->wood_material.channel[static_cast<std::size_t>(colour)];
+  return o;
 }
 
 double host_bytes_per_node(const LbModel& model) {

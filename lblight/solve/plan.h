@@ -119,6 +119,10 @@ struct ModelPlan {
   std::size_t systems() const { return solved_solutions() * channels.size(); }
 };
 
+// The optical parameters as given, per material, of the model's distinct channel `channel` (an
+// entry of ModelPlan::channels).
+std::array<OpticalParams, kMaxMaterials> channel_optics(const ModelPlan& model, int channel);
+
 // A scene's forest as planned: its instances and the coarse lattices' cell size. The coarse
 // lattices are entries of BakePlan::models named "forest" and "forest.alone.<model>".
 struct ForestPlan {

@@ -24,7 +24,6 @@ struct PlanCost {
   double walk_voxel_steps = 0;
   bool fits = true;                 // false: not even one system fits the device's free memory
   std::string why_not;              // batch_capacity's message when it does not fit
-  // Wall time at `updates_per_second` (0 when that is not known).
   // Wall time at `updates_per_second` (0 when that is not known), the walks on `host_cores`.
   double seconds(double updates_per_second, int host_cores = 1) const {
     if (!(updates_per_second > 0)) return 0;
