@@ -18,6 +18,7 @@
 #endif
 
 #include "lblight/core/error.h"
+#include "lblight/io/run_paths.h"
 
 namespace lblight::cli {
 
@@ -85,13 +86,17 @@ const CLI::Validator kNonEmpty(
 
 void check_output_file(const std::filesystem::path& input, const std::filesystem::path& output,
                        const std::string& extension) {
-  const Location where{output.string(), {}, {}};
-  if (std::filesystem::is_directory(output))
-    throw_invalid("the output is a folder; give a " + extension + " file name", where);
-  if (output.extension() != extension) throw_invalid("the output must end in " + extension, where);
-  std::error_code ec;
-  if (std::filesystem::exists(output) && std::filesystem::equivalent(input, output, ec))
-    throw_invalid("input and output are the same file", where);
+  if (output.extension() != extension)
+    throw_invalid("-o '" + output.string() + "' does not end in " + extension + "; allowed: a " + extension +
+                      " file name",
+                  {output.string(), {}, {}});
+  RunPaths().input(input, "the input").output_file(output, "-o").check();
+}
+
+void check_scene_output(const Scene& scene, const std::filesystem::path& folder) {
+  RunPaths paths;
+  for (const std::filesystem::path& f : scene_input_files(scene)) paths.input(f, "input file");
+  paths.output_folder(folder, "-o").check();
 }
 
 void setup_logging(int verbosity) {

@@ -51,11 +51,13 @@ CLI::Validator finite_range(double lo, double hi);
 // otherwise fall back to the default silently, writing somewhere the user did not name.
 extern const CLI::Validator kNonEmpty;
 
-// An output file name given to a command that writes one file: it must end in `extension` (".vdb"),
-// not be a folder, and not be `input` (which the command would replace). Error(InvalidInput)
-// naming `output` otherwise.
+// An output file name given to a command that writes one file from one input: it must end in
+// `extension` (".vdb") and pass RunPaths (a regular file or new, not `input` nor inside it, in a
+// writable folder). Error(InvalidInput) naming `output` otherwise.
 void check_output_file(const std::filesystem::path& input, const std::filesystem::path& output,
                        const std::string& extension);
+// An output folder of a run that reads `scene`: RunPaths over the scene's files and the folder.
+void check_scene_output(const Scene& scene, const std::filesystem::path& folder);
 
 // "--iterations paper|auto|N"
 void parse_iterations(const std::string& text, IterationMode& mode, int& steps);

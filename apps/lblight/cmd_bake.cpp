@@ -57,6 +57,7 @@ int run_bake(const BakeArgs& args, const GlobalOptions& global) {
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-bake")
                           : std::filesystem::path(args.output));
+  check_scene_output(scene, target);
   StagedDirectory::check_target(target, OutputKind::Bake);  // fail before any solving
 
   // Starting a GPU (driver and context, 0.1-1 s) overlaps loading and voxelising the models; a

@@ -13,6 +13,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/version.h"
 #include "lblight/io/output_dir.h"
+#include "lblight/io/run_paths.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
@@ -53,6 +54,9 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
   ctx.cancel = &g_interrupted;
   ctx.threads = usable_threads(a.threads);
   const fs::path out = a.output.empty() ? fs::path("forest-light.vdb") : fs::path(a.output);
+  fs::path rec_file = out;
+  rec_file.replace_extension(".json");
+  RunPaths().input(a.input, "the bake").output_file(out, "-o").output_file(rec_file, "the weights record").check();
   const nlohmann::json meta = {{"lblight_version", kVersion},
                                {"lblight_command", global.command_line},
                                {"lblight_source", a.input},
@@ -85,8 +89,6 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
     rows.push_back({req.instance ? *req.instance : k, in.model, w, in.mean_factor, in.voxels});
   }
   rec["instances"] = rows;
-  fs::path rec_file = out;
-  rec_file.replace_extension(".json");
   write_file_atomically(rec_file, rec.dump(1) + "\n");
   std::cout << "relit " << r.instances << " instance(s) of " << a.input << " for a sun at elevation " << a.elevation
             << ", azimuth " << a.azimuth << (r.coarse ? " with coarse forest factors" : " (local light only)") << ": "
@@ -97,6 +99,10 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
 }
 
 int run_relight(const RelightArgs& a, const GlobalOptions& global) {
+  if (!a.output.empty() && fs::path(a.output).extension() != ".vdb")
+    throw_invalid("-o '" + a.output + "' does not end in .vdb; allowed: a .vdb file name (a forest's weights go "
+                  "beside it, in the same name with .json)",
+                  {a.output, {}, {}});
   if (a.model.empty() && holds_forest(a.input)) return run_relight_forest(a, global);
   if (a.local || a.voxel_size > 0 || a.instance >= 0)
     throw_invalid("--local, --voxel-size and --instance relight a forest; '" + a.input +
@@ -119,6 +125,8 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
     }
   }
   if (!fs::exists(vdb)) throw_invalid("no such bake file: " + vdb.string());
+  const fs::path out = a.output.empty() ? fs::path(vdb.stem().string() + "-light.vdb") : fs::path(a.output);
+  RunPaths().input(a.input, "the bake").input(vdb, "the bake").output_file(out, "-o").check();
   RelightRequest req;
   req.toward_sun = toward_sun_from_angles(a.elevation, a.azimuth);
   req.intensity = a.intensity;
@@ -127,7 +135,6 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
   RunContext ctx;
   ctx.cancel = &g_interrupted;
   const RelitModel r = relight_model(vdb, req, ctx);
-  const fs::path out = a.output.empty() ? fs::path(vdb.stem().string() + "-light.vdb") : fs::path(a.output);
   nlohmann::json weights = nlohmann::json::array();
   for (const auto& [solution, weight] : r.weights) weights.push_back({solution, weight});
   const nlohmann::json box = {{"lblight_lattice_min", r.frame.index_min},

@@ -19,6 +19,7 @@
 #include "lblight/core/version.h"
 #include "lblight/io/image_io.h"
 #include "lblight/io/output_dir.h"
+#include "lblight/io/run_paths.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
@@ -173,16 +174,10 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
   // Both outputs checked before the render: a refusal after it would leave the first file behind.
   const fs::path exr = a.sheet && a.output == "render.exr" ? fs::path("sheet.svg") : fs::path(a.output);
   const fs::path png = a.png.empty() ? fs::path(exr).replace_extension(".png") : fs::path(a.png);
-  for (const fs::path& p : a.sheet ? std::vector<fs::path>{exr} : std::vector<fs::path>{exr, png}) {
-    const fs::path folder = p.has_parent_path() ? p.parent_path() : fs::path(".");
-    std::error_code ec;
-    if (!fs::is_directory(folder, ec)) throw_invalid("the folder to write into does not exist", {p.string(), {}, {}});
-    if (fs::is_directory(p, ec)) throw_invalid("is a folder; name a file to write", {p.string(), {}, {}});
-  }
-  if (!a.sheet && exr.lexically_normal() == png.lexically_normal())
-    throw_invalid("the EXR and the PNG preview would be the same file; name the EXR with -o x.exr (the preview "
-                  "becomes x.png) or give --png another name",
-                  {exr.string(), {}, {}});
+  RunPaths paths;
+  paths.input(a.input, "the input").output_file(exr, "-o");
+  if (!a.sheet) paths.output_file(png, a.png.empty() ? "the preview (-o's name with .png)" : "--png");
+  paths.check();
   RunContext ctx;
   ctx.cancel = &g_interrupted;
   if (a.sheet) return run_sheet(a, src, width, height, exr, ctx);

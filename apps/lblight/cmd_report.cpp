@@ -43,6 +43,7 @@ int run_report(const ReportArgs& args) {
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.solve.scene).stem().string() + "-report")
                           : std::filesystem::path(args.output));
+  check_scene_output(scene, target);
   StagedDirectory::check_target(target, OutputKind::Report);
 
   ReportOptions opt;

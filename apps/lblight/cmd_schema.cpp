@@ -6,6 +6,7 @@
 
 #include "apps/lblight/commands.h"
 #include "lblight/io/output_dir.h"
+#include "lblight/io/run_paths.h"
 #include "lblight/scene/scene_fields.h"
 
 namespace lblight::cli {
@@ -21,7 +22,10 @@ Command add_schema_command(CLI::App& app, const GlobalOptions&) {
   return {cmd, [output] {
             const std::string text = scene_json_schema().dump(2) + "\n";
             if (output->empty()) std::cout << text;
-            else write_file_atomically(*output, text);
+            else {
+              RunPaths().output_file(*output, "-o").check();
+              write_file_atomically(*output, text);
+            }
             return 0;
           }};
 }

@@ -80,6 +80,7 @@ int run_simulate(const SimulateArgs& a, const GlobalOptions& global) {
                                   : "no gas model '" + a.model + "' in the scene",
                   {a.solve.scene, {}, {}});
   const fs::path target = output_folder_path(a.output);
+  check_scene_output(scene, target);
   StagedDirectory::check_target(target, OutputKind::Simulation);
   const RunContext ctx = a.solve.run_context();
   const PlanOverrides ov = a.solve.overrides();

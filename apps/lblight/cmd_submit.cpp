@@ -11,6 +11,7 @@
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
 #include "lblight/core/error.h"
+#include "lblight/core/script_text.h"
 #include "lblight/core/system_info.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/slurm.h"
@@ -71,6 +72,7 @@ int run_submit(SubmitArgs a) {
   if (!a.slurm) throw_invalid("say which scheduler: --slurm (the only one lblight submits to)", {"--slurm", {}, {}});
   const Scene scene = load_scene(a.solve.scene);
   const fs::path out = fs::absolute(output_folder_path(a.output)).lexically_normal();
+  check_scene_output(scene, out);
   check_submission_folder(out, scene.name);
   // The backend every unit runs on (part of its inputs hash): a GPU asked for means CUDA.
   std::string backend = a.solve.backend == "auto" ? (a.settings.gpus_per_task > 0 ? "cuda" : "cpu") : a.solve.backend;
@@ -94,8 +96,9 @@ int run_submit(SubmitArgs a) {
   s.scene_hash = scene.hash;
   s.backend = backend;
   s.bake_args = a.solve.plan_arguments();
-  s.units = estimate_units(plan, a, backend);
   s.slurm = a.settings;
+  check_script_values(s);
+  s.units = estimate_units(plan, a, backend);
 
   // The units to run: all, or with --resume those without a finished partial.
   std::vector<int> run;
@@ -119,10 +122,10 @@ int run_submit(SubmitArgs a) {
     std::cout << "dry run: wrote " << array_script.string() << " and " << merge_script.string()
               << "; nothing submitted. To submit by hand:\n";
     if (run.empty())
-      std::cout << "  sbatch " << merge_script.string() << "\n";
+      std::cout << "  sbatch " << shell_word(merge_script.string()) << "\n";
     else
-      std::cout << "  array=$(sbatch --parsable " << array_arg << " " << array_script.string()
-                << ") && sbatch --dependency=afterok:${array%%;*} " << merge_script.string() << "\n";
+      std::cout << "  array=$(sbatch --parsable " << array_arg << " " << shell_word(array_script.string())
+                << ") && sbatch --dependency=afterok:${array%%;*} " << shell_word(merge_script.string()) << "\n";
     return 0;
   }
   std::string array_job;
@@ -143,7 +146,7 @@ int run_submit(SubmitArgs a) {
   else
     std::cout << "submitted array job " << array_job << " (" << run.size() << " of " << s.units.size()
               << " unit(s)) and merge job " << merge_job << " after it; output: " << merged_dir(out).string()
-              << "\nprogress: lblight status " << out.string() << "\n";
+              << "\nprogress: lblight status " << shell_word(out.string()) << "\n";
   // For scripts: the job ids alone on the last line.
   std::cout << "jobs: " << (array_job.empty() ? "-" : array_job) << " " << merge_job << "\n";
   return 0;

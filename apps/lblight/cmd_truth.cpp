@@ -55,6 +55,7 @@ int run_truth(const TruthArgs& args, const GlobalOptions& global) {
   const std::filesystem::path target = output_folder_path(
       args.output.empty() ? std::filesystem::path(std::filesystem::path(args.scene).stem().string() + "-truth")
                           : std::filesystem::path(args.output));
+  check_scene_output(scene, target);
   StagedDirectory::check_target(target, OutputKind::Bake);
   RunContext ctx;
   ctx.cancel = &g_interrupted;

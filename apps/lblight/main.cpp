@@ -5,11 +5,14 @@
 
 #include <cstdio>
 #include <iostream>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "lblight/core/error.h"
+#include "lblight/core/script_text.h"
 #include "lblight/core/version.h"
 
 int main(int argc, char** argv) {
@@ -63,7 +66,7 @@ int main(int argc, char** argv) {
       known = known || c.app->get_name() == word;
     }
     if (!known) {
-      std::cerr << "error: unknown command '" << word.substr(0, 80) << "'; allowed: " << names
+      std::cerr << "error: unknown command '" << printable(word.substr(0, 80)) << "'; allowed: " << names
                 << "\nRun 'lblight --help' for what each does.\n";
       return 2;
     }
@@ -74,7 +77,11 @@ int main(int argc, char** argv) {
   } catch (const CLI::Success& e) {  // --help, --version (CallForHelp derives from Success)
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    app.exit(e);
+    // CLI11 quotes the offending value: its control characters are shown escaped, line by line.
+    std::ostringstream err;
+    app.exit(e, std::cout, err);
+    std::istringstream lines(err.str());
+    for (std::string line; std::getline(lines, line);) std::cerr << printable(line) << "\n";
     return 2;
   }
 

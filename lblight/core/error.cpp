@@ -2,13 +2,18 @@
 
 #include <sstream>
 
+#include "lblight/core/script_text.h"
+
 namespace lblight {
 
 namespace {
 // A message quotes input (names, paths, values); hostile input can make that megabytes. Each part
 // is cut to a size a terminal and a log can take, saying how much was left out.
 constexpr std::size_t kMaxPart = 2000;
-std::string bounded(const std::string& s) {
+// Control characters of echoed input (a newline, an escape sequence) are shown escaped, never sent
+// to the terminal as they are.
+std::string bounded(const std::string& raw) {
+  const std::string s = printable(raw);
   if (s.size() <= kMaxPart) return s;
   return s.substr(0, kMaxPart) + "... (" + std::to_string(s.size() - kMaxPart) + " more characters)";
 }

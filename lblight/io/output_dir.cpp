@@ -16,6 +16,7 @@
 #include "lblight/core/error.h"
 #include "lblight/core/input_file.h"
 #include "lblight/core/json_depth.h"
+#include "lblight/io/run_paths.h"
 
 namespace fs = std::filesystem;
 
@@ -163,13 +164,10 @@ void StagedDirectory::commit() {
 void write_file_atomically(const fs::path& given, const std::function<void(const fs::path& temporary)>& write) {
   std::error_code sec;
   const fs::file_status st = fs::status(given, sec);  // through symlinks
-  if (fs::is_directory(st)) throw_invalid("is a folder; name a file to write", {given.string(), {}, {}});
-  if (fs::exists(st) && !fs::is_regular_file(st)) {
-    // A device or a pipe (/dev/null, a FIFO) is written through; renaming over it would replace
-    // the device node with a file (as root, /dev/null itself).
-    write(given);
-    return;
-  }
+  // Never written through a FIFO (blocks until a reader comes) or a device, nor renamed over one
+  // (as root, /dev/null itself): commands check their outputs up front (RunPaths), this is the last
+  // line.
+  check_output_file_path(given, "output");
   // A symlink to a file: the file it names is replaced, the link stays.
   const fs::path file = fs::is_symlink(fs::symlink_status(given, sec)) && fs::exists(st) ? fs::canonical(given, sec) : given;
   remove_dead_leftovers(file.parent_path().empty() ? fs::path(".") : file.parent_path(),

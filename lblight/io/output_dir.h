@@ -49,8 +49,8 @@ class StagedDirectory {
 
 // Has `write` fill a temporary file beside `file`, then renames it into place: `file` appears
 // complete or not at all. The temporary is removed when `write` throws (its error passes on) or
-// the rename fails. A folder at `file` is refused (Error(InvalidInput)); a device or FIFO there
-// is written through, not replaced; a symlink's target file is replaced, not the link.
+// the rename fails. Anything but a regular file at `file` (a folder, FIFO, device) is refused
+// (Error(InvalidInput), check_output_file_path); a symlink's target file is replaced, not the link.
 void write_file_atomically(const std::filesystem::path& file,
                            const std::function<void(const std::filesystem::path& temporary)>& write);
 // The same for a file whose content is `text`.

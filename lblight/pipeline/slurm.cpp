@@ -8,10 +8,12 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <regex>
 #include <sstream>
 
 #include "lblight/core/error.h"
 #include "lblight/core/input_file.h"
+#include "lblight/core/script_text.h"
 #include "lblight/core/system_info.h"
 #include "lblight/core/version.h"
 #include "lblight/io/output_dir.h"
@@ -34,20 +36,9 @@ constexpr double kProcessBytes = 128.0 * 1048576.0;  // lblight itself (measured
 constexpr double kMemoryMargin = 1.25;
 constexpr double kMergeMemoryBytes = 1024.0 * 1048576.0;
 
-// A word for bash, single-quoted unless it needs no quotes.
-std::string quoted(const std::string& word) {
-  if (!word.empty() && std::all_of(word.begin(), word.end(), [](char c) {
-        return std::isalnum(static_cast<unsigned char>(c)) || std::strchr("_-./:=,+%@", c);
-      }))
-    return word;
-  std::string q = "'";
-  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 std::string words(const std::vector<std::string>& v) {
   std::string s;
-  for (const std::string& w : v) s += (s.empty() ? "" : " ") + quoted(w);
+  for (const std::string& w : v) s += (s.empty() ? "" : " ") + shell_word(w);
   return s;
 }
 
@@ -68,9 +59,18 @@ std::string one_line(std::string text) {
 
 // The #SBATCH lines both scripts share.
 void common_directives(std::ostream& o, const SlurmSettings& s) {
-  if (!s.partition.empty()) o << "#SBATCH --partition=" << s.partition << "\n";
-  if (!s.account.empty()) o << "#SBATCH --account=" << s.account << "\n";
-  for (const std::string& a : s.sbatch_args) o << "#SBATCH " << a << "\n";
+  if (!s.partition.empty()) o << "#SBATCH --partition=" << sbatch_word(s.partition) << "\n";
+  if (!s.account.empty()) o << "#SBATCH --account=" << sbatch_word(s.account) << "\n";
+  for (const std::string& a : s.sbatch_args) o << "#SBATCH " << sbatch_word(a) << "\n";
+}
+
+// A log file for #SBATCH --output: sbatch replaces %A, %a, %j in it, so a '%' of the folder's
+// name is written %%.
+std::string log_pattern(const fs::path& out, const std::string& file) {
+  std::string path = (out / "logs").string() + "/";
+  std::string escaped;
+  for (char c : path) escaped += c == '%' ? std::string("%%") : std::string(1, c);
+  return sbatch_word(escaped + file);
 }
 
 nlohmann::json read_json(const fs::path& file, const std::string& what) {
@@ -139,7 +139,32 @@ void check_submission_folder(const fs::path& out, const std::string& scene_name)
                   {submission_file(out).string(), "/scene/name", {}});
 }
 
+void check_script_values(const Submission& s) {
+  check_script_value(s.out.string(), "-o");
+  check_script_value(s.lblight.string(), "--lblight");
+  check_script_value(s.scene_file.string(), "the scene file");
+  check_script_value(s.backend, "--backend");
+  for (const std::string& a : s.bake_args) check_script_value(a, "a bake option");
+  check_script_value(s.slurm.partition, "--partition");
+  check_script_value(s.slurm.account, "--account");
+  check_script_value(s.slurm.time, "--time");
+  check_script_value(s.slurm.mem, "--mem");
+  for (const std::string& a : s.slurm.sbatch_args) check_script_value(a, "--sbatch-arg");
+  for (const UnitEstimate& u : s.units) check_script_value(u.name, "unit name");
+  static const std::regex time_format(R"(\d+|\d+:\d+|\d+:\d+:\d+|\d+-\d+|\d+-\d+:\d+|\d+-\d+:\d+:\d+|UNLIMITED|unlimited|INFINITE|infinite)");
+  if (!s.slurm.time.empty() && !std::regex_match(s.slurm.time, time_format))
+    throw_invalid("--time '" + s.slurm.time + "' is not a Slurm time limit; allowed: MINUTES, MINUTES:SECONDS, "
+                  "HOURS:MINUTES:SECONDS, DAYS-HOURS[:MINUTES[:SECONDS]] or UNLIMITED",
+                  {"--time", {}, {}});
+  static const std::regex mem_format(R"(\d{1,12}[KMGT]?)");
+  if (!s.slurm.mem.empty() && !std::regex_match(s.slurm.mem, mem_format))
+    throw_invalid("--mem '" + s.slurm.mem + "' is not a Slurm memory size; allowed: a whole number of MiB, or with a "
+                  "unit K, M, G or T (e.g. 8G)",
+                  {"--mem", {}, {}});
+}
+
 std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume) {
+  check_script_values(s);
   for (const char* sub : {"slurm", "parts", "state", "logs"}) fs::create_directories(s.out / sub);
   save_submission(s);
 
@@ -156,21 +181,21 @@ std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume)
   std::ostringstream a;
   a << "#!/bin/bash\n"
     << "# lblight submit: one array task per work unit of scene '" << one_line(s.scene_name) << "' (docs/scale-out.md).\n"
-    << "# Written by lblight " << kVersion << " (rewritten by every submit); lblight status " << one_line(quoted(out))
+    << "# Written by lblight " << kVersion << " (rewritten by every submit); lblight status " << one_line(shell_word(out))
     << " reads what it leaves.\n"
     << "#SBATCH --job-name=" << job_name(s.scene_name) << "\n"
-    << "#SBATCH --output=" << out << "/logs/slurm-%A_%a.out\n"
+    << "#SBATCH --output=" << log_pattern(s.out, "slurm-%A_%a.out") << "\n"
     << "#SBATCH --ntasks=1\n"
     << "#SBATCH --cpus-per-task=" << s.slurm.cpus_per_task << "\n"
-    << "#SBATCH --mem=" << (s.slurm.mem.empty() ? slurm_mem(memory) : s.slurm.mem) << "\n"
-    << "#SBATCH --time=" << time << "\n";
+    << "#SBATCH --mem=" << sbatch_word(s.slurm.mem.empty() ? slurm_mem(memory) : s.slurm.mem) << "\n"
+    << "#SBATCH --time=" << sbatch_word(time) << "\n";
   if (s.slurm.gpus_per_task > 0) a << "#SBATCH --gpus-per-task=" << s.slurm.gpus_per_task << "\n";
   common_directives(a, s.slurm);
   std::vector<std::string> bake = {s.lblight.string(), "bake", s.scene_file.string(), "--only"};
   a << "set -u\n"
     << "units=(" << words(names) << ")\n"
     << "unit=${units[$SLURM_ARRAY_TASK_ID]}\n"
-    << "out=" << quoted(out) << "\n"
+    << "out=" << shell_word(out) << "\n"
     << "job=${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\n"
     << "log=\"$out/logs/$unit.$job.log\"\n"
     << "# lblight status reads these: running, then failed with the exit code (a finished unit is its partial).\n"
@@ -184,7 +209,7 @@ std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume)
     << "trap 'echo \"unit $unit: terminated\"' TERM\n"
     << "state running\n"
     << "echo \"unit $unit: array task $job on $(hostname -s); log $log\"\n"
-    << words(bake) << " \"$unit\" --backend " << s.backend << " --threads \"${SLURM_CPUS_PER_TASK:-0}\""
+    << words(bake) << " \"$unit\" --backend " << shell_word(s.backend) << " --threads \"${SLURM_CPUS_PER_TASK:-0}\""
     << (resume ? " --resume" : "") << (s.bake_args.empty() ? "" : " " + words(s.bake_args))
     << " \\\n  -o \"$out/parts/$unit\" >\"$log\" 2>&1\n"
     << "rc=$?\n"
@@ -201,11 +226,11 @@ std::pair<fs::path, fs::path> write_submission(const Submission& s, bool resume)
     << "# lblight submit: the merge of every unit's partial output of scene '" << one_line(s.scene_name)
     << "' into one bake, after the array succeeded (sbatch --dependency=afterok:<array job>).\n"
     << "#SBATCH --job-name=" << job_name(s.scene_name, "-merge") << "\n"
-    << "#SBATCH --output=" << out << "/logs/merge.%j.log\n"
+    << "#SBATCH --output=" << log_pattern(s.out, "merge.%j.log") << "\n"
     << "#SBATCH --ntasks=1\n"
     << "#SBATCH --cpus-per-task=1\n"
     << "#SBATCH --mem=" << slurm_mem(kMergeMemoryBytes) << "\n"
-    << "#SBATCH --time=" << time << "\n"
+    << "#SBATCH --time=" << sbatch_word(time) << "\n"
     << "# A failed unit cancels this job instead of leaving it pending forever (DependencyNeverSatisfied).\n"
     << "#SBATCH --kill-on-invalid-dep=yes\n";
   common_directives(m, s.slurm);

@@ -71,6 +71,12 @@ std::filesystem::path merged_dir(const std::filesystem::path& out);
 // submission (submit.json) of a scene of that name. Error(InvalidInput) naming what is in the way.
 void check_submission_folder(const std::filesystem::path& out, const std::string& scene_name);
 
+// Error(InvalidInput) when a value the scripts would receive (paths, options, --partition,
+// --account, --time, --mem, --sbatch-arg, unit names) holds a control character, or --time/--mem
+// is not in Slurm's format. write_submission checks this first; submit calls it before its
+// estimates.
+void check_script_values(const Submission& s);
+
 // Writes submit.json and both scripts (creating the folders); `resume`: the tasks bake with
 // --resume. Returns the paths of the array and merge scripts.
 std::pair<std::filesystem::path, std::filesystem::path> write_submission(const Submission& s, bool resume);

@@ -17,6 +17,7 @@
 #include "lblight/core/system_info.h"
 #include "lblight/core/version.h"
 #include "lblight/io/output_dir.h"
+#include "lblight/io/run_paths.h"
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/pipeline/manifest.h"
 #include "lblight/solve/bake.h"
@@ -425,6 +426,10 @@ struct RemoveOnExit {
 nlohmann::json merge_parts(const std::vector<fs::path>& parts, const fs::path& target, const MergeOptions& opt,
                            const RunContext& ctx) {
   if (parts.empty()) throw_invalid("no partial outputs to merge; give one folder per unit (lblight bake --only)");
+  RunPaths paths;
+  for (const fs::path& dir : parts) paths.input(dir, "part");
+  if (!opt.scene_file.empty()) paths.input(opt.scene_file, "--scene");
+  paths.output_folder(target, "-o").check();
   StagedDirectory::check_target(target, OutputKind::Bake);
   std::map<std::string, std::vector<Part>> by_unit;
   std::vector<std::string> units = opt.units;

@@ -178,6 +178,9 @@ struct Scene {
 Scene load_scene(const std::filesystem::path& file);
 // The same from text (tests); file is used in messages and to resolve relative paths.
 Scene parse_scene(const std::string& text, const std::filesystem::path& file);
+// The scene file and every file it names (density .vdb files, meshes, gas obstacles): what a run
+// reads, so that no output replaces them (RunPaths).
+std::vector<std::filesystem::path> scene_input_files(const Scene& scene);
 
 // "all", "0,1,5-7" or a JSON-like list, to sorted unique indices in 0..18. Throws
 // Error(InvalidInput) with `where` as location.

@@ -593,4 +593,16 @@ Scene load_scene(const std::filesystem::path& file) {
   return parse_scene(read_input_file(file, "scene file", kMaxSceneBytes), file);
 }
 
+std::vector<std::filesystem::path> scene_input_files(const Scene& scene) {
+  std::vector<std::filesystem::path> files = {scene.file};
+  for (const ModelSpec& m : scene.models) {
+    const DensitySpec& d = m.density;
+    if (d.type == SourceType::Vdb) files.push_back(d.vdb.path);
+    if (d.type == SourceType::Mesh) files.push_back(d.mesh.path);
+    if (d.type == SourceType::Gas)
+      for (const GasObstacle& o : d.gas.obstacles) files.push_back(o.path);
+  }
+  return files;
+}
+
 }  // namespace lblight

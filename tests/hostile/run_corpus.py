@@ -62,7 +62,7 @@ GiB = 1 << 30
 MEMORY_LIMIT = 4 * GiB
 FILE_SIZE_LIMIT = 4 * GiB          # a runaway writer is stopped (SIGXFSZ) before it fills the disk
 DEFAULT_TIMEOUT = 60.0
-CLASSES = ("crash", "hang", "memory", "partial-output", "wrong-ok", "trust", "message")
+CLASSES = ("crash", "hang", "memory", "partial-output", "wrong-ok", "trust", "message", "injection", "overwrite")
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -2**31
@@ -1585,6 +1585,187 @@ for how in ["truncated-1", "index-min-overflow", "name-unterminated"]:
     case("message-decompress-lbh-%s" % how, "message", ["decompress", "m.lbh", "-o", "x.vdb"],
          (lambda h: lambda ctx: lbh_variant(ctx, "m.lbh", h))(how), 2, ["m.lbh"], timeout=HANG_T, max_seconds=5,
          must_not_exist=["x.vdb", "*.tmp-*"])
+
+
+# ------------------------------------------------------------------------------------ injection
+# Every value that enters a generated script (lblight submit's sbatch scripts): a control character
+# is refused before anything is written; anything else is quoted so that bash and sbatch's own
+# #SBATCH parser read back exactly the value given, and nothing runs that the user did not name.
+
+SUBMIT = ["submit", "scene.json", "--slurm", "--dry-run", "--no-timing"]
+
+
+def _sbatch_arguments(line):
+    """The arguments sbatch reads from one '#SBATCH ...' line (its _get_argument: quotes '...' or
+    "...", a backslash escapes the next character also inside quotes, an unquoted '#' ends)."""
+    rest, out = line[len("#SBATCH"):], []
+    i = 0
+    while i < len(rest):
+        while i < len(rest) and rest[i].isspace():
+            i += 1
+        if i >= len(rest):
+            break
+        arg, quote, esc = "", None, False
+        while i < len(rest) and (quote or not rest[i].isspace()):
+            c = rest[i]
+            i += 1
+            if esc:
+                esc = False
+            elif c == "\\":
+                esc = True
+                continue
+            elif quote:
+                if c == quote:
+                    quote = None
+                    continue
+            elif c in "\"'":
+                quote = c
+                continue
+            elif c == "#":
+                return out + ([arg] if arg else [])
+            arg += c
+        if quote:
+            return None  # sbatch: "Unmatched quote", fatal
+        out.append(arg)
+    return out
+
+
+def _check_script_reads_back(expected):
+    """expected: {option: value} that the units script's #SBATCH lines must carry exactly."""
+    def check(ctx, res):
+        path = ctx.p("run/slurm/units.sbatch")
+        if not os.path.exists(path):
+            return "no units.sbatch written"
+        text = open(path, encoding="utf-8", errors="replace").read()
+        if subprocess.run(["bash", "-n", path], capture_output=True).returncode != 0:
+            return "units.sbatch is not valid bash"
+        got = {}
+        for line in text.splitlines():
+            if line.startswith("#SBATCH"):
+                args = _sbatch_arguments(line)
+                if args is None:
+                    return "sbatch could not parse: %r" % line
+                for a in args:
+                    k, _, v = a.partition("=")
+                    got.setdefault(k, []).append(v)
+            elif line.startswith("#") or not line.strip():
+                continue
+        for k, v in expected.items():
+            if v not in got.get(k, []):
+                return "%s reads back as %r, not %r" % (k, got.get(k), v)
+        return None
+    return check
+
+
+def _run_units_script(ctx, res):
+    """Runs the array script of a dry run with a stand-in lblight that records its arguments: every
+    argument arrives as one word, and nothing else runs."""
+    if res.returncode != 0:
+        return "exit %d" % res.returncode
+    env = dict(os.environ, SLURM_ARRAY_TASK_ID="0", SLURM_ARRAY_JOB_ID="7", SLURM_CPUS_PER_TASK="1")
+    subprocess.run(["bash", ctx.p("run/slurm/units.sbatch")], cwd=ctx.dir, env=env, capture_output=True, timeout=30)
+    if any(os.path.exists(ctx.p(n)) for n in ("pwned", "run/pwned")):
+        return "the script ran a command hidden in a value"
+    rec = ctx.p("args.txt")
+    if not os.path.exists(rec):
+        return "the stand-in lblight did not run"
+    args = open(rec).read().split("\0")[:-1]
+    if args[:2] != ["bake", ctx.p("scene.json")] or "--only" not in args:
+        return "the stand-in got %r" % args
+    return None
+
+
+def _fake_lblight(ctx):
+    ctx.scene()
+    path = ctx.write("bin $(touch pwned) 'x/lblight", "#!/bin/sh\nprintf '%s\\0' \"$@\" > \"$(dirname \"$0\")/../args.txt\"\n")
+    os.chmod(path, 0o755)
+
+
+for opt in ("--partition", "--account", "--time", "--mem", "--sbatch-arg"):
+    case("injection-newline-%s" % opt.strip("-"), "injection", SUBMIT + ["-o", "run", opt + "=p\ntouch pwned"],
+         scene_writer(), 2, [opt, "control character"], must_not_exist=["run", "pwned"], max_seconds=10,
+         desc="a newline in %s would end the #SBATCH line and start a command" % opt)
+case("injection-newline-output", "injection", SUBMIT + ["-o", "run\ntouch pwned"], scene_writer(), 2,
+     ["-o", "control character"], must_not_exist=["run*", "pwned"], max_seconds=10)
+case("injection-cr-partition", "injection", SUBMIT + ["-o", "run", "--partition", "p\rq"], scene_writer(), 2,
+     ["--partition", "control character"], must_not_exist=["run"])
+case("injection-escape-account", "injection", SUBMIT + ["-o", "run", "--account", "a\x1b[31mred"], scene_writer(), 2,
+     ["--account", "\\x1b"], must_not_exist=["run"], desc="refused, and the escape sequence shown escaped")
+case("injection-quoted-values-read-back", "injection",
+     SUBMIT + ["-o", "run", "--partition", "p q$(touch pwned)'\"#x", "--account", "a\\b",
+               "--sbatch-arg=--comment=two words # not a comment"],
+     scene_writer(), 0, [], must_not_exist=["pwned"],
+     check=_check_script_reads_back({"--partition": "p q$(touch pwned)'\"#x", "--account": "a\\b",
+                                     "--comment": "two words # not a comment"}),
+     desc="spaces, quotes, $( ), backslashes and '#' reach sbatch as the values given")
+case("injection-folder-with-spaces-and-percent", "injection", SUBMIT + ["-o", "my run %j $(touch pwned)"],
+     scene_writer(), 0, [], must_not_exist=["pwned"],
+     check=lambda ctx, res: (lambda t: None if "--output=\"" in t and "%%j" in t else "output pattern not quoted: " + t)(
+         open(ctx.p("my run %j $(touch pwned)/slurm/units.sbatch")).read()),
+     desc="the log pattern keeps the folder's '%' literal (%%) and its spaces quoted")
+case("injection-script-runs-as-named", "injection",
+     SUBMIT + ["-o", "run", "--lblight", "bin $(touch pwned) 'x/lblight"], _fake_lblight, 0, [],
+     must_not_exist=["pwned", "run/pwned"], check=_run_units_script,
+     desc="the array script, run with bash, passes the odd executable path and scene as single words")
+case("injection-printed-command-quoted", "injection", SUBMIT + ["-o", "a b;touch pwned"], scene_writer(), 0,
+     ["'"], must_not_exist=["pwned"],
+     check=lambda ctx, res: None if "sbatch --parsable --array=0 '" in res.text() else
+     "the printed sbatch command leaves the path unquoted",
+     desc="the 'submit by hand' commands quote the scripts' paths")
+
+# ------------------------------------------------------------------------------------ overwrite
+# Outputs that are FIFOs or devices are refused up front (no hang, nothing left), and no output may
+# replace an input of the same run or another of its outputs.
+
+for name, args, setup in [
+        ("relight", ["relight", "ref", "-o", "f.vdb"], lambda ctx: ctx.bake("ref")),
+        ("schema", ["schema", "-o", "f.vdb"], None),
+        ("render-exr", ["render", "ref", "--size", "8x8", "-o", "f.vdb"], lambda ctx: ctx.bake("ref")),
+        ("render-png", ["render", "ref", "--size", "8x8", "-o", "p.exr", "--png", "f.vdb"], lambda ctx: ctx.bake("ref")),
+        ("voxelize", ["voxelize", "m.obj", "-r", "8", "-o", "f.vdb"], raw_writer("m.obj", TRIANGLE_OBJ)),
+        ("compress", ["compress", "d.vdb", "--threshold", "0", "-o", "f.vdb"], lambda ctx: ctx.small_vdb("d.vdb")),
+        ("decompress", ["decompress", "m.lbh", "-o", "f.vdb"], lambda ctx: ctx.small_lbh("m.lbh"))]:
+    if name == "compress":
+        args = args[:-1] + ["f.lbh"]
+    fifo_name = args[-1]
+    case("overwrite-output-fifo-" + name, "overwrite", args,
+         (lambda st, fn: lambda ctx: ((st or (lambda c: None))(ctx), ctx.fifo(fn)))(setup, fifo_name),
+         2, [fifo_name, NOT_REGULAR], timeout=HANG_T, max_seconds=5, must_not_exist=["p.exr", "p.png", "*.tmp-*"],
+         desc="an output that is a FIFO would block until a reader comes: refused before any work")
+case("overwrite-render-png-dev-full", "overwrite",
+     ["render", "ref", "--size", "8x8", "-o", "p.exr", "--png", "/dev/full"], lambda ctx: ctx.bake("ref"), 2,
+     ["/dev/full", NOT_REGULAR], must_not_exist=["p.exr", "*.tmp-*"], desc="no .exr left when the preview cannot be written")
+case("overwrite-schema-dev-null", "overwrite", ["schema", "-o", "/dev/null"], None, 2, ["/dev/null", NOT_REGULAR])
+case("overwrite-relight-into-bake", "overwrite", ["relight", "ref", "-o", "ref/light.vdb"], lambda ctx: ctx.bake("ref"),
+     2, ["ref", "inside"], must_not_exist=["ref/light.vdb"], unchanged=["ref/manifest.json", "ref/m.vdb"],
+     desc="a relit file inside the bake it reads would make the bake a folder with a foreign file")
+case("overwrite-relight-own-input", "overwrite", ["relight", "ref/m.vdb", "-o", "ref/m.vdb"],
+     lambda ctx: ctx.bake("ref"), 2, ["ref/m.vdb"], unchanged=["ref/m.vdb"])
+case("overwrite-relight-manifest", "overwrite", ["relight", "ref", "-o", "ref/manifest.vdb"],
+     lambda ctx: ctx.bake("ref"), 2, ["manifest.vdb"], unchanged=["ref/manifest.json"])
+case("overwrite-relight-json-name", "overwrite", ["relight", "ref", "-o", "same.json"], lambda ctx: ctx.bake("ref"),
+     2, ["same.json", ".vdb"], must_not_exist=["same.json"])
+case("overwrite-relight-hard-link", "overwrite", ["relight", "ref", "--model", "m", "-o", "h.vdb"],
+     lambda ctx: (ctx.bake("ref"), os.link(ctx.p("ref/m.vdb"), ctx.p("h.vdb"))), 2, ["h.vdb"],
+     unchanged=["ref/m.vdb"], desc="a hard link to the input is the input")
+case("overwrite-merge-into-part", "overwrite", ["merge", "ref", "-o", "ref"], lambda ctx: ctx.bake("ref"), 2,
+     ["ref"], unchanged=["ref/manifest.json", "ref/m.vdb"])
+case("overwrite-merge-into-part-spelled-otherwise", "overwrite", ["merge", "ref", "-o", "./x/../ref/"],
+     lambda ctx: ctx.bake("ref"), 2, ["ref"], unchanged=["ref/manifest.json", "ref/m.vdb"])
+case("overwrite-bake-over-own-density", "overwrite", ["bake", "scene.json", "-o", "ref"],
+     lambda ctx: (ctx.bake("ref"), ctx.scene(models=[vdb_model(path="ref/m.vdb")])), 2, ["ref"],
+     unchanged=["ref/m.vdb", "ref/manifest.json"], desc="the bake would replace the folder holding its own input")
+case("overwrite-bake-folder-holds-scene", "overwrite", ["bake", "out/scene.json", "-o", "out"],
+     lambda ctx: ctx.scene("out/scene.json"), 2, ["out"], unchanged=["out/scene.json"])
+case("overwrite-compress-hard-link", "overwrite", ["compress", "d.vdb", "--threshold", "0", "-o", "h.lbh"],
+     lambda ctx: (ctx.small_vdb("d.vdb"), os.link(ctx.p("d.vdb"), ctx.p("h.lbh"))), 2, ["h.lbh"], unchanged=["d.vdb"])
+case("overwrite-render-into-bake", "overwrite", ["render", "ref", "--size", "8x8", "-o", "ref/p.exr"],
+     lambda ctx: ctx.bake("ref"), 2, ["ref"], must_not_exist=["ref/p.exr", "ref/p.png"])
+case("overwrite-render-exr-is-png", "overwrite", ["render", "ref", "--size", "8x8", "-o", "p.exr", "--png", "./p.exr"],
+     lambda ctx: ctx.bake("ref"), 2, ["p.exr"], must_not_exist=["p.exr"])
+case("overwrite-schema-unwritable-folder", "overwrite", ["schema", "-o", "ro/s.json"],
+     lambda ctx: (os.makedirs(ctx.p("ro")), os.chmod(ctx.p("ro"), 0o555)), 2, ["ro", "writ"], run_as_nobody=True,
+     must_not_exist=["ro/s.json"])
 
 
 # ----------------------------------------------------------------------------------------------
