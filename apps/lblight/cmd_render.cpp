@@ -24,6 +24,8 @@
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
 #include "lblight/pipeline/render_bake.h"
+#include "lblight/render/path_trace.h"
+#include "lblight/render/picture_metrics.h"
 #include "lblight/render/scale_bar.h"
 #include "lblight/solve/plan.h"
 
@@ -41,6 +43,11 @@ struct RenderArgs {
   double fov = 35, elevation = 45, azimuth = 0, intensity = 1, ambient = 0, sky = 0, exposure = 0, step = 0.5;
   bool half = true, full_float = false, sheet = false;
   int threads = 0;
+  bool reference = false;  // path-traced reference (render/path_trace.h)
+  double target_error = 0.02, time_budget = 0;
+  int samples = 4096;
+  long long seed = 1;
+  std::string against;  // a reference EXR to compare the picture with (picture_metrics.h)
 };
 
 Vec3d vec3(const std::vector<double>& v, const char* option) {
@@ -138,6 +145,62 @@ int run_sheet(const RenderArgs& a, const RenderSource& src_in, int width, int he
   return 0;
 }
 
+// --against: the picture's numbers against a reference picture of the same camera.
+void print_metrics(const Image& img, const std::string& file, const Camera& cam, const Vec3d& toward_sun) {
+  Image ref;
+  std::vector<float> se;
+  ref.rgba = read_exr(file, ref.width, ref.height, nullptr, &se);
+  const PictureMetrics m = compare_pictures(img, ref, se, cam, toward_sun);
+  std::cout << "against " << file << ": mean " << message_number(m.mean_ratio) << " x the reference's; 4x4-block L1 "
+            << message_number(m.block_l1) << " (the reference's own noise " << message_number(m.reference_noise)
+            << "); sun/shade " << message_number(m.sun_shade) << " (reference " << message_number(m.reference_sun_shade)
+            << "); top/bottom " << message_number(m.top_bottom) << " (reference "
+            << message_number(m.reference_top_bottom) << ")\n";
+}
+
+// --reference: every order of scattering path traced through the same volume, sun, sky and
+// ambient light (docs/rendering.md sec. 4); the EXR carries the standard errors as se.R/G/B.
+int run_reference(const RenderArgs& a, const GlobalOptions& global, const RenderVolume& volume, const Camera& cam,
+                  const fs::path& exr, const fs::path& png, const RunContext& ctx) {
+  PathTraceSettings pt;
+  pt.toward_sun = toward_sun_from_angles(a.elevation, a.azimuth);
+  pt.intensity = a.intensity;
+  pt.sky = a.sky;
+  pt.ambient = a.ambient;
+  pt.target_error = a.target_error;
+  pt.time_budget = a.time_budget;
+  pt.max_samples = a.samples;
+  pt.seed = static_cast<std::uint64_t>(a.seed);
+  pt.threads = usable_threads(a.threads);
+  pt.progress = [](int samples, double error) {
+    spdlog::info("reference: {} path(s) per pixel and channel, relative standard error {:.4f}", samples, error);
+  };
+  const ReferenceImage ref = path_trace(volume, cam, pt, ctx);
+  const std::map<std::string, std::string> attrs = {
+      {"lblight_version", kVersion},
+      {"lblight_command", global.command_line},
+      {"lblight_source", a.input},
+      {"lblight_camera_position", format3(cam.position)},
+      {"lblight_camera_look_at", format3(cam.look_at)},
+      {"lblight_camera_fov_degrees", std::to_string(cam.fov_degrees)},
+      {"lblight_sun", "elevation " + std::to_string(a.elevation) + " azimuth " + std::to_string(a.azimuth) +
+                          " intensity " + std::to_string(a.intensity) + " ambient " + std::to_string(a.ambient) +
+                          " sky " + std::to_string(a.sky)},
+      {"lblight_term", "reference"},
+      {"lblight_reference", "path traced, every order: " + std::to_string(ref.samples) +
+                                " paths per pixel and channel, relative standard error " +
+                                message_number(ref.relative_error) + ", seed " + std::to_string(a.seed)},
+      {"lblight_units", "radiance; 1 = a unit sun's irradiance per steradian; se.R/G/B: standard error of the mean"}};
+  write_file_atomically(exr, [&](const fs::path& tmp) {
+    write_exr(tmp, cam.width, cam.height, ref.image.rgba, !a.full_float, attrs, &ref.std_error);
+  });
+  write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, cam.width, cam.height, tone_map(ref.image, a.exposure)); });
+  std::cout << "reference " << cam.width << "x" << cam.height << ": " << ref.samples
+            << " paths per pixel and channel, relative standard error " << message_number(ref.relative_error) << ", "
+            << ref.seconds << " s: " << exr.string() << ", preview " << png.string() << "\n";
+  return 0;
+}
+
 int run_render(const RenderArgs& a, const GlobalOptions& global) {
   int width = 0, height = 0;
   char x = 0;
@@ -163,7 +226,8 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
             : a.term == "indirect" ? RenderTerm::Indirect
             : a.term == "lb"       ? RenderTerm::Lb
                                    : RenderTerm::All;
-  src.light = st.term != RenderTerm::Direct;
+  src.light = st.term != RenderTerm::Direct && !a.reference;
+  if (a.reference && (a.sheet || !a.grid.empty())) throw_invalid("--reference draws the lit volume: leave out --sheet and --grid");
   src.grid = a.grid;
   if (!a.grid.empty() && a.sheet) throw_invalid("--grid and --sheet draw different pictures: choose one");
   if (a.grid.empty() && (!a.range.empty() || a.log))
@@ -194,6 +258,7 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
     if (!c) throw_invalid("--orbit '" + a.orbit + "'; allowed: " + kOrbitPresets);
     cam = *c;
   }
+  if (a.reference) return run_reference(a, global, volume, cam, exr, png, ctx);
   int last = -1;
   st.progress = [&](double f) {
     const int pct = static_cast<int>(f * 100);
@@ -244,6 +309,7 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
     write_file_atomically(png, [&](const fs::path& tmp) { write_png(tmp, legend.width, legend.height, legend.rgb); });
     std::cout << "grid '" << a.grid << "' from " << field.lo << " to " << field.hi << (a.log ? " (log)" : "") << "\n";
   }
+  if (!a.against.empty()) print_metrics(img, a.against, cam, sun.toward_sun);
   std::cout << "rendered " << width << "x" << height << " (" << (a.grid.empty() ? a.term : "grid " + a.grid) << ") in " << seconds << " s on "
             << (st.threads > 0 ? std::to_string(st.threads) + " thread(s)" : std::string("all cores")) << ": " << exr.string() << ", preview " << png.string() << "\n";
   return 0;
@@ -299,6 +365,24 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("-o,--output", args->output, "Output .exr")->capture_default_str()->check(kNonEmpty);
   cmd->add_option("--png", args->png, "Preview .png (default: the .exr's name with .png)")->check(kNonEmpty);
   cmd->add_option("--threads", args->threads, "CPU threads (0 = all cores); the image does not depend on it")->check(CLI::Range(0, 4096));
+  cmd->add_option("--against", args->against,
+                  "Also print how the picture compares with this reference EXR (render --reference, same camera): "
+                  "mean ratio, 4x4-block L1 and the reference's noise in it, sun/shade and top/bottom ratios");
+  cmd->add_flag("--reference", args->reference,
+                "Path trace the same volume instead (every order of scattering by Monte Carlo, the picture the "
+                "others are judged against); the EXR holds each pixel's standard error as se.R, se.G, se.B");
+  cmd->add_option("--target-error", args->target_error,
+                  "--reference: stop at this relative standard error of the image")
+      ->check(finite_range(1e-4, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--time-budget", args->time_budget, "--reference: or after this many seconds (0: no limit)")
+      ->check(finite_range(0.0, 1e7));
+  cmd->add_option("--samples", args->samples, "--reference: or after this many paths per pixel and channel")
+      ->check(CLI::Range(2, 1 << 24))
+      ->capture_default_str();
+  cmd->add_option("--seed", args->seed, "--reference: random seed (the image is the same for any thread count)")
+      ->check(CLI::Range(0LL, (1LL << 62)))
+      ->capture_default_str();
   return {cmd, [args, &global] { return run_render(*args, global); }};
 }
 

@@ -18,14 +18,18 @@
 namespace lblight {
 
 void write_exr(const std::filesystem::path& file, int width, int height, const std::vector<float>& rgba, bool half,
-               const std::map<std::string, std::string>& attributes) {
-  if (rgba.size() != static_cast<std::size_t>(width) * height * 4)
+               const std::map<std::string, std::string>& attributes, const std::vector<float>* std_error) {
+  if (rgba.size() != static_cast<std::size_t>(width) * height * 4 ||
+      (std_error && std_error->size() != static_cast<std::size_t>(width) * height * 3))
     throw Error(ErrorCategory::Internal, "write_exr: pixel count does not match the size");
   try {
     Imf::Header header(width, height);
     const Imf::PixelType type = half ? Imf::HALF : Imf::FLOAT;
     const char* names[4] = {"R", "G", "B", "A"};
     for (const char* n : names) header.channels().insert(n, Imf::Channel(type));
+    const char* se_names[3] = {"se.R", "se.G", "se.B"};
+    if (std_error)
+      for (const char* n : se_names) header.channels().insert(n, Imf::Channel(Imf::FLOAT));
     for (const auto& [key, value] : attributes) header.insert(key, Imf::StringAttribute(value));
     header.compression() = Imf::ZIP_COMPRESSION;
     // OpenEXR writes a frame buffer of the channels' own type: half is converted here.
@@ -43,6 +47,12 @@ void write_exr(const std::filesystem::path& file, int width, int height, const s
         fb.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), 4 * sizeof(float),
                                        4 * sizeof(float) * static_cast<std::size_t>(width)));
     }
+    if (std_error) {
+      char* base = reinterpret_cast<char*>(const_cast<float*>(std_error->data()));
+      for (int c = 0; c < 3; ++c)
+        fb.insert(se_names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), 3 * sizeof(float),
+                                          3 * sizeof(float) * static_cast<std::size_t>(width)));
+    }
     Imf::OutputFile out(file.string().c_str(), header);
     out.setFrameBuffer(fb);
     out.writePixels(height);
@@ -52,7 +62,7 @@ void write_exr(const std::filesystem::path& file, int width, int height, const s
 }
 
 std::vector<float> read_exr(const std::filesystem::path& file, int& width, int& height,
-                            std::map<std::string, std::string>* attributes) {
+                            std::map<std::string, std::string>* attributes, std::vector<float>* std_error) {
   try {
     Imf::InputFile in(file.string().c_str());
     const Imath::Box2i dw = in.header().dataWindow();
@@ -65,6 +75,16 @@ std::vector<float> read_exr(const std::filesystem::path& file, int& width, int& 
                  (static_cast<std::ptrdiff_t>(dw.min.x) + static_cast<std::ptrdiff_t>(dw.min.y) * width) * 4 * sizeof(float);
     for (int c = 0; c < 4; ++c)
       fb.insert(names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), 4 * sizeof(float), 4 * sizeof(float) * width));
+    if (std_error) {  // a reference picture's se.R, se.G, se.B (0 where the file has none)
+      std_error->assign(static_cast<std::size_t>(width) * height * 3, 0.0f);
+      char* se_base = reinterpret_cast<char*>(std_error->data()) -
+                      (static_cast<std::ptrdiff_t>(dw.min.x) + static_cast<std::ptrdiff_t>(dw.min.y) * width) * 3 *
+                          sizeof(float);
+      const char* se_names[3] = {"se.R", "se.G", "se.B"};
+      for (int c = 0; c < 3; ++c)
+        fb.insert(se_names[c], Imf::Slice(Imf::FLOAT, se_base + c * sizeof(float), 3 * sizeof(float),
+                                          3 * sizeof(float) * width, 1, 1, 0.0));
+    }
     in.setFrameBuffer(fb);
     in.readPixels(dw.min.y, dw.max.y);
     if (attributes)

@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "lblight/core/random_walk.h"
 #include "lblight/core/system_info.h"
 #include "lblight/lattice/d3q19.h"
 
@@ -34,51 +35,10 @@ namespace {
 
 constexpr double kFixedScale = 1073741824.0;  // 2^30: scores are summed as integers of this unit
 constexpr double kRouletteWeight = 0.1;       // below it a photon survives with probability w / 0.1
-constexpr double kPi = 3.14159265358979323846;
-
-// SplitMix64's finaliser and Weyl sequence, seeded per photon from (seed, stream, index): each
-// photon's numbers depend on nothing but its own counter.
-std::uint64_t mix64(std::uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-struct PhotonRng {
-  std::uint64_t state;
-  PhotonRng(std::uint64_t seed, std::uint64_t stream, std::uint64_t photon)
-      : state(mix64(mix64(mix64(seed) ^ stream) ^ photon)) {}
-  double uniform() {  // in (0, 1]
-    state += 0x9E3779B97F4A7C15ull;
-    return (static_cast<double>(mix64(state) >> 11) + 1.0) * 0x1.0p-53;
-  }
-};
 
 using Vec = std::array<double, 3>;
-
-// Henyey-Greenstein: a new direction at cos(theta) from d with the HG distribution of g.
-Vec scatter_hg(const Vec& d, double g, double u1, double u2) {
-  double c;
-  if (std::abs(g) < 1e-6) {
-    c = 1.0 - 2.0 * u1;
-  } else {
-    const double s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
-    c = (1.0 + g * g - s * s) / (2.0 * g);
-  }
-  c = std::clamp(c, -1.0, 1.0);
-  const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
-  const double phi = 2.0 * kPi * u2;
-  // Orthonormal basis around d (Duff et al. 2017).
-  const double sign = std::copysign(1.0, d[2]);
-  const double a = -1.0 / (sign + d[2]);
-  const double b = d[0] * d[1] * a;
-  const Vec t1{1.0 + sign * d[0] * d[0] * a, sign * b, -sign * d[0]};
-  const Vec t2{b, sign + d[1] * d[1] * a, -d[1]};
-  Vec n;
-  for (int k = 0; k < 3; ++k) n[k] = sn * (std::cos(phi) * t1[k] + std::sin(phi) * t2[k]) + c * d[k];
-  const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  for (double& x : n) x /= len;
-  return n;
-}
+using PhotonRng = CounterRng;
+constexpr double kPi = 3.14159265358979323846;
 
 // Where photons start: faces of the interior box [0.5, n - 1.5] per axis (node i is the centre of
 // the unit voxel [i - 0.5, i + 0.5]), each with its share of the incident power. Over a ground the

@@ -110,5 +110,7 @@ inline constexpr const char* kOrbitPresets = "front, side, top, three-quarter";
 // direction and the direction it scatters into; |g| is clamped to kMaxRenderedG.
 inline constexpr double kMaxRenderedG = 0.95;
 double henyey_greenstein(double g, double cos_theta);
+// The same without the clamp (|g| < 1).
+double henyey_greenstein_unclamped(double g, double cos_theta);
 
 }  // namespace lblight
