@@ -65,7 +65,8 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
                                {"lblight_intensity", a.intensity},
                                {"lblight_ambient", a.ambient},
                                {"lblight_sky", a.sky},
-                               {"lblight_coarse_factors", req.coarse}};
+                               {"lblight_coarse_factors", req.coarse},
+                               {"lblight_delta_m", bake_solved_with_delta_m(a.input)}};
   const ForestRelightResult r = relight_forest(a.input, req, out, meta, ctx);
   nlohmann::json rec = {{"source", a.input},
                         {"output", out.string()},
@@ -152,7 +153,8 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
                                {"lblight_intensity", a.intensity},
                                {"lblight_ambient", a.ambient},
                                {"lblight_sky", a.sky},
-                               {"lblight_weights", weights.dump()}};
+                               {"lblight_weights", weights.dump()},
+                               {"lblight_delta_m", bake_solved_with_delta_m(vdb)}};
   const std::vector<DenseGridOut> grids = {{"light", nullptr, &r.light, false, lmeta},
                                            {"density", &r.density, nullptr, true, dmeta}};
   // Written under a temporary name and renamed: the output appears complete or not at all.

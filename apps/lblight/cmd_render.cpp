@@ -47,6 +47,7 @@ struct RenderArgs {
   double target_error = 0.02, time_budget = 0;
   int samples = 4096;
   long long seed = 1;
+  int max_scatterings = 0;
   std::string against;  // a reference EXR to compare the picture with (picture_metrics.h)
 };
 
@@ -170,6 +171,7 @@ int run_reference(const RenderArgs& a, const GlobalOptions& global, const Render
   pt.target_error = a.target_error;
   pt.time_budget = a.time_budget;
   pt.max_samples = a.samples;
+  pt.max_scatterings = a.max_scatterings;
   pt.seed = static_cast<std::uint64_t>(a.seed);
   pt.threads = usable_threads(a.threads);
   pt.progress = [](int samples, double error) {
@@ -379,6 +381,11 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
       ->check(finite_range(0.0, 1e7));
   cmd->add_option("--samples", args->samples, "--reference: or after this many paths per pixel and channel")
       ->check(CLI::Range(2, 1 << 24))
+      ->capture_default_str();
+  cmd->add_option("--max-scatterings", args->max_scatterings,
+                  "--reference: only light scattered at most this many times (1: single scattering, what --term "
+                  "direct draws; 0: every order)")
+      ->check(CLI::Range(0, 1000000))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "--reference: random seed (the image is the same for any thread count)")
       ->check(CLI::Range(0LL, (1LL << 62)))

@@ -1,5 +1,7 @@
 #include "lblight/pipeline/bake_output.h"
 
+#include "lblight/lattice/lb_model.h"
+
 #include "lblight/pipeline/relight.h"
 #include "lblight/pipeline/work_units.h"
 
@@ -337,6 +339,13 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["distinct_channels"] = mp.channels.size();
   model["savings"] = savings_json(mp);
   model["lb_model"] = plan_.scene->solver.model.name();
+  if (plan_.scene->solver.model.calibrated) {  // which corrections the light was solved with (render reads delta_m)
+    LbModel lb = plan_.scene->solver.model;
+    nlohmann::json switches = nlohmann::json::object();
+    for (int k = 0; k < static_cast<int>(kCalibrationNames.size()); ++k)
+      switches[kCalibrationNames[static_cast<std::size_t>(k)]] = *calibration_switch(lb, k);
+    model["lb_calibration"] = switches;
+  }
   model["steps"] = {{"mode", to_string(mp.steps.mode)},
                     {"method", to_string(mp.steps.method)},
                     {"tolerance", mp.steps.tolerance},

@@ -91,4 +91,21 @@ fs::path manifest_file(const fs::path& dir, const std::string& name, const std::
   return dir / p;
 }
 
+bool solved_with_delta_m(const nlohmann::json& m) {
+  if (!m.is_object() || m.value("lb_model", "") != "calibrated") return false;
+  const nlohmann::json switches = m.value("lb_calibration", nlohmann::json::object());
+  return !switches.is_object() || switches.value("delta_m", true);
+}
+
+bool bake_solved_with_delta_m(const fs::path& path) {
+  std::error_code ec;
+  const bool folder = fs::is_directory(path, ec);
+  const fs::path dir = folder ? path : path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  if (!fs::is_regular_file(dir / "manifest.json", ec)) return false;
+  const nlohmann::json m = read_manifest(dir);
+  for (const nlohmann::json& entry : m["models"])
+    if (folder || entry["file"] == path.filename().string()) return solved_with_delta_m(entry);
+  return false;
+}
+
 }  // namespace lblight

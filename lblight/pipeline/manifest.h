@@ -30,4 +30,11 @@ nlohmann::json read_manifest(const std::filesystem::path& dir);
 std::filesystem::path manifest_file(const std::filesystem::path& dir, const std::string& name,
                                     const std::string& json_path);
 
+// Whether the light of a model entry was solved with the calibrated model's delta-M scaling (its
+// "lb_model" and "lb_calibration"): what a renderer of that light must know (docs/rendering.md).
+bool solved_with_delta_m(const nlohmann::json& model_entry);
+// The same for the bake `vdb` lies in (its manifest.json beside it, the entry naming it; for a
+// forest bake any model's entry, as they share the scene's solver); false without a manifest.
+bool bake_solved_with_delta_m(const std::filesystem::path& vdb_or_folder);
+
 }  // namespace lblight

@@ -114,6 +114,10 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
     return v;
   }
   const bool relit = has_grid(inspected, "light") && !has_grid(inspected, "B00") && !has_grid(inspected, "B06");
+  if (relit) {  // the LB model's delta-M scaling, as relight recorded it from the bake
+    const nlohmann::json& meta = inspected.at("file_metadata");
+    v.delta_m = meta.contains("lblight_delta_m") && meta["lblight_delta_m"].is_boolean() && meta["lblight_delta_m"].get<bool>();
+  }
   if (relit && src.light) {
     // The renderer removes the unscattered sun from the light: both must be for the same sun.
     const nlohmann::json& meta = inspected.at("file_metadata");
@@ -168,6 +172,7 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
       v.materials[0] = from_json(m["materials"]["medium"], manifest_file_name, at + "/medium");
       v.materials[1] = m["materials"].contains("wood") ? from_json(m["materials"]["wood"], manifest_file_name, at + "/wood") : v.materials[0];
       known = true;
+      v.delta_m = solved_with_delta_m(m);
     }
   }
   if (!known)

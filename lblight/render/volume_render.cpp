@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "lblight/core/error.h"
+#include "lblight/lattice/lb_model.h"
 #include "lblight/render/volume_sampling.h"
 
 namespace lblight {
@@ -81,8 +82,25 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
   const bool indirect = (st.term == RenderTerm::Indirect || st.term == RenderTerm::All) && !v.light[0].empty();
   const bool whole_lb = st.term == RenderTerm::Lb && !v.light[0].empty();
   const Vec3d sun = unit(st.toward_sun);
-  std::array<std::vector<float>, 3> shadow;
+  std::array<std::vector<float>, 3> shadow, lb_shadow;
   if (direct || indirect) shadow = sun_transmittance(v, sun, st.step);
+  // The medium the LB light was solved in: delta-M scaled where the bake scaled it. Its own
+  // unscattered sun (E T*, which holds the light scattered into the forward peak) is what the
+  // indirect term takes out of the LB light; the eye ray's extinction is the scaled one, since the
+  // peak sends scattered light on along the ray.
+  RenderVolume lb_medium;
+  if (v.delta_m) {
+    lb_medium.frame = v.frame;
+    lb_medium.density = v.density;
+    lb_medium.material = v.material;
+    LbModel scaling;
+    scaling.calibrated = true;
+    for (std::size_t k = 0; k < v.materials.size(); ++k)
+      for (std::size_t c = 0; c < 3; ++c) lb_medium.materials[k][c] = model_params(v.materials[k][c], scaling);
+    if (indirect) lb_shadow = sun_transmittance(lb_medium, sun, st.step);
+  }
+  const RenderVolume& lb = v.delta_m ? lb_medium : v;
+  if (!v.delta_m) lb_shadow = shadow;
   Image img;
   img.width = cam.width;
   img.height = cam.height;
@@ -100,19 +118,28 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
           const Vec3d p = add(rays.origin, mul(dir, t));
           const double rho = sample(d, v.density, p);
           if (rho <= 0) continue;
-          const auto& m = v.materials[static_cast<std::size_t>(material_at(v, p))];
+          const std::size_t material = static_cast<std::size_t>(material_at(v, p));
+          const auto& m = v.materials[material];
+          const auto& mlb = lb.materials[material];
           for (int c = 0; c < 3; ++c) {
-            const double sigma_t = rho * m[c].sigma_t(), sigma_s = rho * m[c].sigma_s;
+            const double sigma_t = rho * mlb[c].sigma_t(), sigma_s = rho * m[c].sigma_s, lb_sigma_s = rho * mlb[c].sigma_s;
             // Light scattered toward the eye per unit length, constant over the step; the step's
             // own attenuation integrated exactly.
             double source = 0;
             const double to_sun = direct || indirect ? sample(d, shadow[c], p) : 0.0;
             if (direct) source += sigma_s * henyey_greenstein(m[c].g, cos_theta) * st.intensity * to_sun;
             if (indirect) {
-              const double scattered = std::max(0.0, sample(d, v.light[c], p) - st.intensity * to_sun);
-              source += sigma_s * scattered / (4 * kPi);
+              // The LB light beyond its own unscattered sun, in-scattered isotropically, and (delta-M)
+              // the sun's light in the forward peak, E (T* - T), scattered out of it by the scaled
+              // phase function.
+              const double lb_to_sun = sample(d, lb_shadow[c], p);
+              const double scattered = std::max(0.0, sample(d, v.light[c], p) - st.intensity * lb_to_sun);
+              source += lb_sigma_s * scattered / (4 * kPi);
+              if (v.delta_m)
+                source += lb_sigma_s * henyey_greenstein(mlb[c].g, cos_theta) * st.intensity *
+                          std::max(0.0, lb_to_sun - to_sun);
             }
-            if (whole_lb) source += sigma_s * sample(d, v.light[c], p) / (4 * kPi);
+            if (whole_lb) source += lb_sigma_s * sample(d, v.light[c], p) / (4 * kPi);
             const double a = sigma_t * len;
             const double through = std::exp(-a);
             const double weight = a > 1e-12 ? (1 - through) / sigma_t : len;

@@ -30,6 +30,10 @@ struct RenderVolume {
   std::vector<std::uint8_t> material;          // kMaterialMedium or kMaterialWood per node (empty: all medium)
   std::array<std::array<OpticalParams, 3>, 2> materials{};  // per material, per channel, per voxel length
   std::array<std::vector<float>, 3> light;     // the relit LB light per node (empty: no indirect term)
+  // The light was solved with the calibrated model's delta-M scaling (docs/model.md sec. 8): the
+  // forward peak g^2 of scattering counted as unscattered. The renderer then takes the light's
+  // scattered part and the eye ray's extinction from the same scaled medium (docs/rendering.md sec. 1).
+  bool delta_m = false;
   std::vector<float> field;                    // a grid shown in false colour (render_field), per node
 };
 

@@ -114,6 +114,37 @@ TEST_CASE("render: the direct term is linear in the sun, and the LB term counts 
   CHECK(centre(unit, 1) == Approx(sigma_s / (4 * kPi) * (1 - std::exp(-sigma_t * 10)) / sigma_t).epsilon(0.005));
 }
 
+TEST_CASE("render: light solved with delta-M scaling is rendered in the same scaled medium", "[render]") {
+  // Sun and eye straight above a slab of g = 0.8: the forward peak f = g^2 of scattering counts as
+  // unscattered in the LB light. The eye ray then fades with sigma_t* = sigma_t - f sigma_s, the
+  // direct term stays the exact single scattering, and LB light equal to its own unscattered sun
+  // E T* (no scattered part) adds only the sun's light in the peak, E (T* - T), scattered by the
+  // scaled phase function: closed forms over z (depth below the top node).
+  const OpticalParams m{0.02, 0.2, 0.8};
+  const double f = 0.64, ss = m.sigma_s * (1 - f), gs = (0.8 - f) / (1 - f);
+  const double st_true = m.sigma_t(), st_scaled = m.sigma_a + ss, L = 20;
+  RenderVolume v = slab(9, 9, 21, 1.0f, m);
+  v.delta_m = true;
+  RenderSettings st;
+  st.toward_sun = {0, 0, 1};
+  st.step = 0.1;
+  st.term = RenderTerm::Direct;
+  const auto integral = [&](double a) { return (1 - std::exp(-a * L)) / a; };
+  const double direct = m.sigma_s * henyey_greenstein(m.g, -1.0) * integral(st_true + st_scaled);
+  CHECK(centre(render_volume(v, above(v), st), 0) == Approx(direct).epsilon(0.01));
+  for (auto& c : v.light) c.resize(v.density.size());
+  for (int k = 0; k < 21; ++k)
+    for (int j = 0; j < 9; ++j)
+      for (int i = 0; i < 9; ++i)
+        for (auto& c : v.light) c[v.frame.dims.index(i, j, k)] = static_cast<float>(std::exp(-st_scaled * (20 - k)));
+  st.term = RenderTerm::Indirect;
+  const double peak = ss * henyey_greenstein(gs, -1.0) * (integral(2 * st_scaled) - integral(st_true + st_scaled));
+  CHECK(centre(render_volume(v, above(v), st), 0) == Approx(peak).epsilon(0.02));
+  // Without delta-M the same light is mostly scattered light (E T* > E T), emitted isotropically.
+  v.delta_m = false;
+  CHECK(centre(render_volume(v, above(v), st), 0) > 2 * peak);
+}
+
 TEST_CASE("render: identical images for any thread count", "[render]") {
   RenderVolume v = slab(16, 12, 10, 0.5f, {0.05, 0.3, 0.5});
   for (std::size_t i = 0; i < v.density.size(); ++i) v.density[i] = static_cast<float>((i * 7919) % 97) / 97.0f;
