@@ -12,11 +12,13 @@ if [ -z "$clang" ]; then
   echo "sanitize: SKIPPED: no clang++ (Debian's clang-14) for the ASan/UBSan build and the fuzzers"
   exit 0
 fi
+source scripts/stage-timer.sh
 jobs="$(nproc 2>/dev/null || echo 2)"
-cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER="$clang" -DLBLIGHT_CUDA=OFF \
+stage asan-configure cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER="$clang" -DLBLIGHT_CUDA=OFF \
   -DLBLIGHT_SANITIZE=ON -DLBLIGHT_FUZZERS=ON -DLBLIGHT_FUZZ_SECONDS="${LBLIGHT_FUZZ_SECONDS:-30}" >/dev/null
-cmake --build "$dir" -j"$jobs"
+stage asan-build cmake --build "$dir" -j"$jobs"
 # Leaks at exit in third-party singletons are not findings here; every other report is fatal.
 export ASAN_OPTIONS="detect_leaks=0:abort_on_error=1:allocator_may_return_null=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-ctest --test-dir "$dir" --output-on-failure -j"$jobs" -L 'fast|fuzz'
+stage asan-tests ctest --test-dir "$dir" --output-on-failure -j"$jobs" -L fast
+stage fuzzers ctest --test-dir "$dir" --output-on-failure -j"$jobs" -L fuzz
