@@ -34,6 +34,17 @@ for e, a in suns:
     got = relight.weights(relight.toward_sun_from_angles(e, a), 2.0, 0.3, 0.1)
     if set(ref) != set(got) or any(abs(ref[g] - got[g]) > 1e-9 for g in ref):
         failures.append(f"sun elevation {e} azimuth {a}: add-on {got}, lblight {ref}")
+# Whatever sun stands at or above an object's horizon (and its sky and ambient), the add-on's material
+# needs only B00 and the 13 level/downward directions (relight.HEMISPHERE); below it, no sun weights.
+for e in (0, 0.5, 5, 10, 35.26, 45, 60, 89.9, 90):
+    for a in range(0, 360, 5):
+        got = relight.frame_weights(relight.toward_sun_from_angles(e, a), 1.0, 0.2, 0.1)
+        if not set(got) <= set(relight.HEMISPHERE):
+            failures.append(f"sun elevation {e} azimuth {a} needs {sorted(set(got) - set(relight.HEMISPHERE))}")
+for e in (-0.5, -10, -45, -90):
+    got = relight.frame_weights(relight.toward_sun_from_angles(e, 30), 1.0, 0.2, 0.1)
+    if got != relight.weights((0, 0, 1), 0.0, 0.2, 0.1):
+        failures.append(f"sun below the horizon (elevation {e}) still lights: {got}")
 for line in failures:
     print("FAIL:", line)
 print(f"{len(faces)} faces, {len(suns)} suns checked")

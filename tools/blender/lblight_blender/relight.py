@@ -123,3 +123,20 @@ def weights(toward_sun, intensity=1.0, ambient=0.0, sky=0.0, negligible=NEGLIGIB
             if cz <= 0:
                 out[grid_name(j)] = out.get(grid_name(j), 0.0) + (sky if cz < 0 else 0.5 * sky)
     return out
+
+
+# The grids a sun at or above an object's horizon, its ambient and its sky can ever select: B00 and
+# the 13 level-or-downward directions (a sun above the horizon travels downward, and the 32 faces
+# split along the horizon's octagon, so its three directions are level or downward; the sky uses
+# the same 13). A material binding these serves every sun and every rotation about the vertical:
+# 14 light grids + density + brown = 16, EEVEE's limit on a material's grids (docs/blender.md).
+HEMISPHERE = [grid_name(j) for j in range(19) if DIRECTIONS[j][2] <= 0]
+
+
+def frame_weights(toward_sun, intensity=1.0, ambient=0.0, sky=0.0, negligible=NEGLIGIBLE):
+    """weights() for a sun given in an object's own frame: a sun below that frame's horizon
+    (toward_sun z < 0) lights nothing directly, only the ambient and the sky terms remain."""
+    if _dot(toward_sun, toward_sun) == 0.0 or toward_sun[2] < 0.0:
+        intensity = 0.0
+        toward_sun = (0.0, 0.0, 1.0)
+    return weights(toward_sun, intensity, ambient, sky, negligible)
