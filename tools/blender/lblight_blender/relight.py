@@ -66,18 +66,27 @@ FACES = _faces()
 _UNIT = [None] + [_unit(d) for d in DIRECTIONS[1:]]
 
 
+def _face_rows(f):
+    """Rows of the inverse of the face's direction matrix: (alpha, beta, gamma) = rows . travel."""
+    a, b, c = (_UNIT[k] for k in f)
+    det = _dot(a, _cross(b, c))
+    return tuple(tuple(x / det for x in r) for r in (_cross(b, c), _cross(c, a), _cross(a, b)))
+
+
+_FACE_ROWS = [(f, _face_rows(f)) for f in FACES]  # once: a forest's handler decomposes per instance
+
+
 def decompose(travel, negligible=NEGLIGIBLE):
     """The three directions around `travel` and their barycentric weights (sum 1)."""
     best, best_min = None, -1e300
-    for f in FACES:
-        a, b, c = (_UNIT[k] for k in f)
-        det = _dot(a, _cross(b, c))
-        alpha = _dot(travel, _cross(b, c)) / det
-        beta = _dot(a, _cross(travel, c)) / det
-        gamma = _dot(a, _cross(b, travel)) / det
-        lo = min(alpha, beta, gamma)
+    tx, ty, tz = travel
+    for f, (r0, r1, r2) in _FACE_ROWS:
+        alpha = r0[0] * tx + r0[1] * ty + r0[2] * tz
+        beta = r1[0] * tx + r1[1] * ty + r1[2] * tz
+        gamma = r2[0] * tx + r2[1] * ty + r2[2] * tz
         if alpha + beta + gamma <= 0:
             continue  # the face opposite the direction
+        lo = min(alpha, beta, gamma)
         if lo > best_min + 1e-15:
             best_min = lo
             s = alpha + beta + gamma
