@@ -161,10 +161,15 @@ def _relit_plan(path, info, bake):
     medium, wood = _materials(entries[0], manifest_path)
     differ = [m["name"] for m in entries[1:] if _materials(m, manifest_path) != (medium, wood)]
     sun = {k: meta.get("lblight_" + k) for k in ("sun_elevation", "sun_azimuth", "intensity", "ambient", "sky")}
+    notes = []
+    if differ:
+        notes.append(f"materials of {entries[0]['name']} used for all (also {', '.join(differ)}, which differ)")
+    if "brown" not in names and any(wood.get(k) != medium.get(k) for k in ("sigma_a", "sigma_s")):
+        # `lblight relight` of one model writes light and density only: its wood cannot be told apart.
+        notes.append(f"no brown grid: wood drawn as {medium.get('name', 'the medium')}")
     return {"kind": "static", "vdb": path, "name": os.path.splitext(os.path.basename(path))[0], "medium": medium,
             "wood": wood, "voxel": None, "grids": names, "sun": sun, "source": where,
-            "note": (f"materials of {entries[0]['name']} used for all (also {', '.join(differ)}, which differ)"
-                     if differ else None)}
+            "note": "; ".join(notes) or None}
 
 
 def plan(path, model=None, bake=None, forest=None):
