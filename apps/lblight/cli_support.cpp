@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -76,6 +77,23 @@ CLI::Validator finite_range(double lo, double hi) {
         return {};
       },
       "FLOAT in " + range);
+}
+
+CLI::Validator integer_range(std::uint64_t lo, std::uint64_t hi) {
+  const std::string range = std::to_string(lo) + " to " + std::to_string(hi);
+  return CLI::Validator(
+      [lo, hi, range](std::string& s) -> std::string {
+        std::uint64_t v = 0;
+        const char* end = s.data() + s.size();
+        const auto r = std::from_chars(s.data(), end, v);
+        if (s.empty() || !std::isdigit(static_cast<unsigned char>(s[0])) || r.ptr != end ||
+            (r.ec != std::errc() && r.ec != std::errc::result_out_of_range))
+          return "'" + s + "' is not a whole number >= 0 in digits; allowed: " + range;
+        if (r.ec == std::errc::result_out_of_range || v < lo || v > hi)
+          return "value " + s + " is out of range; allowed: " + range;
+        return {};
+      },
+      "UINT in " + range);
 }
 
 const CLI::Validator kNonEmpty(

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -46,6 +47,10 @@ std::string format_direction(const std::array<int, 3>& d);
 // A number option's check: finite and within [lo, hi] (CLI::Range lets NaN through, since every
 // comparison with NaN is false).
 CLI::Validator finite_range(double lo, double hi);
+
+// A whole-number option's check on its text, before CLI11 converts it: decimal digits only (no
+// sign, so "-1" cannot wrap to 2^64 - 1 in an unsigned field), no overflow, within [lo, hi].
+CLI::Validator integer_range(std::uint64_t lo, std::uint64_t hi);
 
 // A text option's check: not empty. An empty value (a shell variable that was never set) would
 // otherwise fall back to the default silently, writing somewhere the user did not name.

@@ -19,6 +19,8 @@
 #include "lblight/core/relative_gap.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/pipeline/manifest.h"
+#include "lblight/pipeline/relight.h"
+#include "lblight/solve/plan.h"
 #include "lblight/pipeline/work_units.h"
 
 namespace fs = std::filesystem;
@@ -40,6 +42,21 @@ nlohmann::json output_manifest(const fs::path& dir) {
   if (!fs::exists(dir / "manifest.json", ec))
     throw_invalid("not an lblight output directory (no manifest.json)", {dir.string(), {}, {}});
   return read_manifest(dir);
+}
+
+// A manifest without models compares equal to anything: refused, not "0 differences".
+void refuse_empty(const nlohmann::json& manifest, const fs::path& dir) {
+  if (manifest.at("models").empty())
+    throw_invalid("the manifest lists no model, so there is nothing to compare; allowed: a bake output with at "
+                  "least one model",
+                  {(dir / "manifest.json").string(), "/models", {}});
+}
+
+// 0..18 for a grid named B00..B18, else -1.
+int base_solution_index(const std::string& grid) {
+  for (int j = 0; j < 19; ++j)
+    if (grid == base_grid_name(j)) return j;
+  return -1;
 }
 
 // Per grid, each value's difference relative to the reference value; values below 1e-6 of the
@@ -113,6 +130,7 @@ bool has_grid(const fs::path& file, const std::string& grid) {
 int compare_outputs(const CompareArgs& a) {
   const fs::path ref_dir = a.reference, other_dir = a.other;
   const nlohmann::json ref = output_manifest(ref_dir), other = output_manifest(other_dir);
+  refuse_empty(ref, ref_dir);
   double worst = 0.0;
   int grids = 0;
   for (std::size_t mi = 0; mi < ref.at("models").size(); ++mi) {
@@ -138,6 +156,10 @@ int compare_outputs(const CompareArgs& a) {
     for (const auto& s : model.at("solutions")) {
       const std::string grid = s.at("grid");
       const DenseGridIn ref_grid = read_vdb_grid_dense(fa, grid), got_grid = read_vdb_grid_dense(fb, grid);
+      if (const int j = base_solution_index(grid); j >= 0) {  // the checks relight and render apply
+        check_base_solution_grid(ref_grid, j, ref_grid.frame, fa);
+        check_base_solution_grid(got_grid, j, got_grid.frame, fb);
+      }
       double d = 0;
       if (a.metric == "l2") {
         check_comparable(ref_grid, got_grid, fa, fb);
@@ -162,6 +184,10 @@ int compare_outputs(const CompareArgs& a) {
       ++grids;
     }
   }
+  if (grids == 0)
+    throw_invalid("no model of this output has a solution grid to compare; allowed: a bake with at least one "
+                  "solution",
+                  {ref_dir.string(), {}, {}});
   const bool ok = worst <= a.tolerance;
   std::printf("largest over %d grid(s): %.3g (%s %g)\n", grids, worst, ok ? "within" : "ABOVE", a.tolerance);
   return ok ? 0 : 1;
@@ -179,6 +205,7 @@ std::string file_bytes(const fs::path& file) {
 int compare_exact(const CompareArgs& a) {
   const fs::path ref_dir = a.reference, other_dir = a.other;
   const nlohmann::json ref = output_manifest(ref_dir), other = output_manifest(other_dir);
+  refuse_empty(ref, ref_dir);
   int differences = 0, grids = 0, lbh_files = 0;
   const auto differ = [&](const std::string& what) {
     if (++differences <= 20) std::printf("differs: %s\n", what.c_str());

@@ -388,7 +388,7 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::Range(0, 1000000))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "--reference: random seed (the image is the same for any thread count)")
-      ->check(CLI::Range(0LL, (1LL << 62)))
+      ->check(integer_range(0, std::uint64_t{1} << 62))
       ->capture_default_str();
   return {cmd, [args, &global] { return run_render(*args, global); }};
 }

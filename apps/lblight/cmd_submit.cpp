@@ -106,7 +106,7 @@ int run_submit(SubmitArgs a) {
   for (std::size_t i = 0; i < s.units.size(); ++i) {
     const UnitEstimate& u = s.units[i];
     const bool done =
-        a.resume && check_part(part_dir(out, u.name), u.name, u.hash, /*verify_checksums=*/false).state == PartState::Done;
+        a.resume && check_part(part_dir(out, u.name), u.name, u.hash, /*verify_checksums=*/true).state == PartState::Done;
     if (done) spdlog::info("unit '{}': finished in {} (inputs hash {}), not resubmitted", u.name,
                            part_dir(out, u.name).string(), u.hash);
     else run.push_back(static_cast<int>(i));

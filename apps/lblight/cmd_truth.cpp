@@ -5,11 +5,13 @@
 
 #include <chrono>
 #include <iostream>
+#include <limits>
 #include <memory>
 
 #include "apps/lblight/cli_support.h"
 #include "apps/lblight/commands.h"
 #include "apps/lblight/solve_options.h"
+#include "lblight/core/error.h"
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/run_truth.h"
 
@@ -49,6 +51,15 @@ class TruthLog final : public BakeObserver {
 
 int run_truth(const TruthArgs& args, const GlobalOptions& global) {
   const auto t0 = std::chrono::steady_clock::now();
+  // The tracer always runs min_batches batches before it trusts its error: a cap below that
+  // would be ignored, not honoured.
+  const std::uint64_t floor_photons = static_cast<std::uint64_t>(args.mc.min_batches) * args.mc.photons_per_batch;
+  if (args.method == "montecarlo" && args.mc.max_photons != 0 && args.mc.max_photons < floor_photons)
+    throw_invalid("--max-photons " + std::to_string(args.mc.max_photons) + " is below the " +
+                  std::to_string(args.mc.min_batches) + " batches of --photons-per-batch " +
+                  std::to_string(args.mc.photons_per_batch) + " the tracer always runs; allowed: 0 or at least " +
+                  std::to_string(floor_photons) + " (or a smaller --photons-per-batch)",
+                  {"--max-photons", {}, {}});
   const Scene scene = load_scene(args.scene);
   PlanOverrides ov;
   if (!args.solutions.empty()) ov.solutions = parse_solution_list(args.solutions, {"--solutions", {}, {}});
@@ -120,13 +131,16 @@ Command add_truth_command(CLI::App& app, const GlobalOptions& global) {
                   "Or after this many seconds per solution and channel (0: no limit)")
       ->check(finite_range(0.0, 1e9))
       ->capture_default_str();
-  cmd->add_option("--max-photons", args->mc.max_photons, "Or after this many photons (0: no limit)")
+  cmd->add_option("--max-photons", args->mc.max_photons,
+                  "Or after this many photons (0: no limit; at least 16 batches are always traced)")
+      ->check(integer_range(0, std::uint64_t{1} << 50))
       ->capture_default_str();
   cmd->add_option("--photons-per-batch", args->mc.photons_per_batch,
                   "Photons per batch; the standard error comes from the spread between batches")
-      ->check(CLI::Range(std::uint64_t{256}, std::uint64_t{1} << 30))
+      ->check(integer_range(256, std::uint64_t{1} << 30))
       ->capture_default_str();
   cmd->add_option("--seed", args->mc.seed, "Random seed (results depend on it and on nothing else)")
+      ->check(integer_range(0, std::numeric_limits<std::uint64_t>::max()))
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Host threads (0 = all cores); results do not depend on it")
       ->check(CLI::Range(0, 4096))

@@ -6,6 +6,7 @@
 
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
+#include "lblight/pipeline/manifest.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/solve/plan.h"
 
@@ -28,6 +29,53 @@ std::vector<std::pair<int, double>> relight_weights(const RelightRequest& req) {
   return out;
 }
 
+void check_base_solution_grid(const DenseGridIn& g, int solution, const DenseFrame& density_frame,
+                              const std::filesystem::path& file) {
+  const Location where{file.string(), {}, {}};
+  const std::string name = "grid '" + g.name + "'";
+  if (g.type != "vec3s" && g.type != "float")
+    throw_invalid(name + " is of type " + g.type + "; allowed: vec3s (or float) light", where);
+  if (!(g.frame.dims == density_frame.dims) || g.frame.index_min != density_frame.index_min)
+    throw_invalid(name + " does not cover the lattice box of grid 'density' (copied in from another bake?)", where);
+  if (g.frame.index_to_world != density_frame.index_to_world)
+    throw_invalid(name + " has another transform (voxel size, rotation or position) than grid 'density'", where);
+  if (g.metadata.contains("lblight_solution")) {
+    const nlohmann::json& tag = g.metadata["lblight_solution"];
+    if (!tag.is_number_integer() || tag.get<long long>() != solution)
+      throw_invalid(name + " is tagged lblight_solution = " + tag.dump() + "; a grid named " + base_grid_name(solution) +
+                        " must hold base solution " + std::to_string(solution) + " (renamed grids?)",
+                    where);
+  }
+  const Dims& d = g.frame.dims;
+  for (int c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < g.values[c].size(); ++i)
+      if (!std::isfinite(g.values[c][i])) {
+        const std::size_t x = i % d.nx, y = (i / d.nx) % d.ny, z = i / (static_cast<std::size_t>(d.nx) * d.ny);
+        throw_invalid(name + " holds a non-finite value (" + std::to_string(g.values[c][i]) + ") at lattice node (" +
+                          std::to_string(x + g.frame.index_min[0]) + ", " + std::to_string(y + g.frame.index_min[1]) +
+                          ", " + std::to_string(z + g.frame.index_min[2]) + "); the bake is damaged: bake it again",
+                      where);
+      }
+}
+
+void check_manifest_lattice(const std::filesystem::path& vdb, const DenseFrame& frame) {
+  const std::filesystem::path dir = vdb.parent_path().empty() ? "." : vdb.parent_path();
+  std::error_code ec;
+  if (!std::filesystem::exists(dir / "manifest.json", ec)) return;
+  const nlohmann::json manifest = read_manifest(dir);
+  for (const auto& m : manifest.at("models")) {
+    if (m.value("file", nlohmann::json()) != vdb.filename().string()) continue;
+    const nlohmann::json& l = m.at("lattice");
+    const nlohmann::json dims = {frame.dims.nx, frame.dims.ny, frame.dims.nz}, lo = frame.index_min;
+    if (l.at("dims") != dims || l.at("index_min") != lo)
+      throw_invalid("the grids are on the lattice box " + dims.dump() + " from " + lo.dump() + " but " +
+                        (dir / "manifest.json").string() + " gives model '" + m.value("name", std::string{}) +
+                        "' the box " + l.at("dims").dump() + " from " + l.at("index_min").dump() +
+                        " (a .vdb copied in from another bake?)",
+                    {vdb.string(), {}, {}});
+  }
+}
+
 BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::optional<std::set<int>>& wanted, const std::string& why,
                              const RunContext& ctx)
     : file_(vdb) {
@@ -48,11 +96,11 @@ BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::option
   const DenseGridIn density = read_vdb_grid_dense(vdb, "density", ctx);
   frame_ = density.frame;
   density_ = density.values[0];
+  check_manifest_lattice(vdb, frame_);
   if (names.count("brown")) wood_ = read_vdb_grid_dense(vdb, "brown", ctx).values[0];
   for (int j : solutions) {
     DenseGridIn b = read_vdb_grid_dense(vdb, base_grid_name(j), ctx);
-    if (!(b.frame.dims == frame_.dims) || b.frame.index_min != frame_.index_min)
-      throw_invalid("grid " + base_grid_name(j) + " does not cover the lattice box of grid 'density'", {vdb.string(), {}, {}});
+    check_base_solution_grid(b, j, frame_, vdb);
     auto& g = grids_[j];
     for (int c = 0; c < 3; ++c) g[c] = b.values[c].empty() ? b.values[0] : std::move(b.values[c]);
     ctx.check_cancelled();

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "lblight/core/run_context.h"
+#include "lblight/io/vdb_io.h"
 #include "lblight/lattice/dense_grid.h"
 #include "lblight/lattice/sun.h"
 
@@ -33,6 +34,18 @@ struct RelightRequest {
 // half of an ambient of S (open air: 9 S against 18 S; docs/forest.md sec. 4). Yaw turns map the
 // sky onto itself. Error(InvalidInput) for a zero or non-finite direction.
 std::vector<std::pair<int, double>> relight_weights(const RelightRequest& request);
+
+// The checks every reader of a bake's base solution applies before using its values (relight,
+// render, compare, forests): grid `solution` of `file` is on the density's lattice box and
+// transform, tagged (lblight_solution, when present) as that solution, and finite everywhere.
+// Error(InvalidInput) naming the file, the grid and what differs: a grid copied in from another
+// bake, renamed, or damaged would otherwise relight into a plausible wrong picture.
+void check_base_solution_grid(const DenseGridIn& grid, int solution, const DenseFrame& density_frame,
+                              const std::filesystem::path& file);
+
+// The manifest.json beside `vdb` (when there is one) gives the model it names the lattice box of
+// `frame`; Error(InvalidInput) naming the .vdb when it does not (a .vdb copied in from another bake).
+void check_manifest_lattice(const std::filesystem::path& vdb, const DenseFrame& frame);
 
 // The base-solution grids of one bake .vdb (density, brown and the B.. grids asked for), on the
 // bake's lattice box.

@@ -19,6 +19,7 @@
 #include "lblight/io/output_dir.h"
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/work_units.h"
+#include "lblight/scene/json_reader.h"
 #include "lblight/solve/plan_cost.h"
 
 extern char** environ;
@@ -73,12 +74,10 @@ std::string log_pattern(const fs::path& out, const std::string& file) {
   return sbatch_word(escaped + file);
 }
 
+// The strict reader scenes and manifests go through: duplicate keys, depth, control characters
+// and syntax refused with the file and the field, never the JSON library's own text.
 nlohmann::json read_json(const fs::path& file, const std::string& what) {
-  try {
-    return nlohmann::json::parse(read_input_file(file, what, 64ull << 20));
-  } catch (const nlohmann::json::exception& e) {
-    throw_invalid(what + " is not valid JSON: " + e.what(), {file.string(), {}, {}});
-  }
+  return JsonReader::parse_strict(read_input_file(file, what, 64ull << 20), file.string());
 }
 
 std::string text_of(const nlohmann::json& j, const char* key) {
@@ -347,7 +346,9 @@ std::vector<UnitStatus> submission_status(const Submission& s) {
   for (const UnitEstimate& u : s.units) {
     UnitStatus st{u.name, "missing", ""};
     const fs::path part = part_dir(s.out, u.name);
-    const PartCheck c = check_part(part, u.name, u.hash, /*verify_checksums=*/false);
+    // Checksums read every file whole: a unit whose .vdb changed after it finished (same size) is
+    // damaged, not done, so --resume redoes it instead of leaving merge to fail.
+    const PartCheck c = check_part(part, u.name, u.hash, /*verify_checksums=*/true);
     std::error_code ec;
     nlohmann::json state;
     if (fs::exists(state_file(s.out, u.name), ec)) {

@@ -1,6 +1,7 @@
 #include "lblight/scene/json_reader.h"
 
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <vector>
 
@@ -28,13 +29,17 @@ class StrictStructure final : public nlohmann::json_sax<nlohmann::json> {
   bool number_integer(number_integer_t) override { return value(); }
   bool number_unsigned(number_unsigned_t) override { return value(); }
   bool number_float(number_float_t, const string_t&) override { return value(); }
-  bool string(string_t&) override { return value(); }
+  bool string(string_t& s) override {
+    refuse_control(s, "value");
+    return value();
+  }
   bool binary(binary_t&) override { return value(); }
   bool start_object(std::size_t) override { return open(true); }
   bool end_object() override { return close(); }
   bool start_array(std::size_t) override { return open(false); }
   bool end_array() override { return close(); }
   bool key(string_t& k) override {
+    refuse_control(k, "key");
     Level& l = stack_.back();
     l.key = k;
     if (!l.keys.insert(k).second)
@@ -57,6 +62,20 @@ class StrictStructure final : public nlohmann::json_sax<nlohmann::json> {
     std::string key;        // objects: the member being read
     std::set<std::string> keys;
   };
+  // A NUL would cut a path short where the system reads it ("ok.vdb\u0000/../x" opens ok.vdb) and
+  // other control characters reach terminals and scripts: no lblight field needs one.
+  void refuse_control(const std::string& s, const char* what) {
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      const unsigned char c = static_cast<unsigned char>(s[i]);
+      if (c < 0x20 || c == 0x7f) {
+        char code[8];
+        std::snprintf(code, sizeof code, "\\u%04x", c);
+        throw_invalid(std::string("a string ") + what + " holds the control character " + code + " at character " +
+                          std::to_string(i) + "; allowed: text without control characters",
+                      {file_, pointer(), {}});
+      }
+    }
+  }
   bool value() {
     if (!stack_.empty() && !stack_.back().object) ++stack_.back().index;
     return true;

@@ -963,6 +963,18 @@ class Stream {
       if (i.direction[a] < -1 || i.direction[a] > 1)
         return fail(Status::BadHeader, who + ": direction component outside -1..1");
     }
+    // The direction must be the one its index names (docs/lbh-format.md sec. 2.2): a file whose
+    // entry says B06 but points along B05 would relight from the wrong side without a word.
+    {
+      const int m = i.index < 0 ? 0 : i.index;
+      const int want[3] = {lattice_cx(m), lattice_cy(m), lattice_cz(m)};
+      if (i.direction[0] != want[0] || i.direction[1] != want[1] || i.direction[2] != want[2])
+        return fail(Status::BadHeader, who + ": direction (" + std::to_string(i.direction[0]) + ", " +
+                                           std::to_string(i.direction[1]) + ", " + std::to_string(i.direction[2]) +
+                                           ") is not that of its index " + std::to_string(i.index) + " (allowed: (" +
+                                           std::to_string(want[0]) + ", " + std::to_string(want[1]) + ", " +
+                                           std::to_string(want[2]) + "))");
+    }
     i.threshold_mode = rd32(e + E::kThresholdMode.offset);
     i.threshold_param = rdf32(e + E::kThresholdParam.offset);
     i.threshold = rdf32(e + E::kThreshold.offset);

@@ -281,6 +281,17 @@ TEST_CASE("submit --dry-run writes the scripts, and status reads the parts and s
   CHECK(resume.out.find("done: skipped") != std::string::npos);
   CHECK(resume.out.find("--array=1-4 ") != std::string::npos);
 
+  // One byte of the finished unit changed, its size kept: by content, it is not done any more.
+  flip_last_byte(tmp / "run" / "parts" / "tree" / "tree.lbh");
+  const nlohmann::json after = nlohmann::json::parse(run_cli("status run --json", tmp.path()).out);
+  CHECK(after["units"][0]["name"] == "tree");
+  CHECK(after["units"][0]["state"] == "missing");
+  CHECK(after["units"][0]["detail"].get<std::string>().find("does not match its checksum") != std::string::npos);
+  const CliResult redo = run_cli(submit + " --resume", tmp.path());
+  CHECK(redo.exit_code == 0);
+  CHECK(redo.out.find("done: skipped") == std::string::npos);
+  CHECK(redo.out.find("--array=0-4 ") != std::string::npos);
+
   write_text(tmp / "other.json", forest_scene("other"));
   CHECK(run_cli("submit other.json --slurm --dry-run --no-timing -o run", tmp.path()).exit_code == 2);
   const CliResult gpu = run_cli("submit scene.json --slurm --dry-run --backend cpu --gpus-per-task 1 -o g", tmp.path());

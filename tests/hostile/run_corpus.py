@@ -491,6 +491,8 @@ def lbh_variant(ctx, rel, how):
         data = patch(data, 256 + 56, "<Q", 1 << 60)
     elif how == "masks-offset-past-end":
         data = patch(data, 256 + 64, "<Q", len(data) + (1 << 40))
+    elif how == "direction-not-index":  # entry 0 keeps its index and points along B05
+        data = patch(data, 256 + 20, "<iii", 0, 0, 1)
     elif how == "name-unterminated":
         b = bytearray(data)
         b[256:256 + 16] = b"ABCDEFGHIJKLMNOP"
@@ -1213,6 +1215,62 @@ case("wrong-ok-compare-other-lacks-solution", "wrong-ok", ["compare", "a", "b"],
      2, ["B06"], needs_vdb=True)
 
 
+# relight reads a bake with the checks compare has (issue 56 item 3: one validation shared by the
+# readers of a bake's grids): a damaged, renamed or foreign grid is refused, never relit.
+def _relight_setup(edit=None, manifest=None):
+    def setup(ctx):
+        ctx.bake("ref")
+        if edit:
+            ctx.edit_vdb("ref/m.vdb", edit)
+        if manifest:
+            ctx.edit_manifest("ref", manifest)
+    return setup
+
+
+def _swap_names(grids):
+    for g in grids:
+        g.name = {"B00": "B06", "B06": "B00"}.get(g.name, g.name)
+    return grids
+
+
+def _b06_transform(ctx):
+    def fn(grids):
+        for g in grids:
+            if g.name == "B06":
+                g.transform = ctx.vdb.createLinearTransform(voxelSize=0.37)
+        return grids
+    return fn
+
+
+RELIGHT = ["relight", "ref", "-o", "f.vdb", "--sun-elevation", "90", "--ambient", "0.1"]
+case("wrong-ok-relight-nan", "wrong-ok", RELIGHT,
+     _relight_setup(edit=replace_grid("B06", lambda g: set_voxel(g, (3, 3, 3), (NAN, 1.0, 1.0)))), 2,
+     [("m.vdb",), ("non-finite",)], needs_vdb=True, must_not_exist=["f.vdb", "*.tmp-*"])
+case("wrong-ok-relight-swapped-names", "wrong-ok", RELIGHT, _relight_setup(edit=_swap_names), 2,
+     [("m.vdb",), ("lblight_solution",)], needs_vdb=True, must_not_exist=["f.vdb", "*.tmp-*"])
+case("wrong-ok-relight-other-transform", "wrong-ok", RELIGHT,
+     lambda ctx: (ctx.bake("ref"), ctx.edit_vdb("ref/m.vdb", _b06_transform(ctx))), 2,
+     [("m.vdb",), ("transform",)], needs_vdb=True, must_not_exist=["f.vdb", "*.tmp-*"])
+case("wrong-ok-relight-other-lattice", "wrong-ok", RELIGHT,
+     _relight_setup(manifest=lambda m: m["models"][0]["lattice"].__setitem__(
+         "dims", [d + 2 for d in m["models"][0]["lattice"]["dims"]])), 2,
+     [("m.vdb",), ("lattice box",)], must_not_exist=["f.vdb", "*.tmp-*"])
+case("wrong-ok-relight-control", "wrong-ok", RELIGHT, _relight_setup(), 0, ["f.vdb"],
+     desc="control: the same bake undamaged relights")
+case("wrong-ok-compare-empty-manifest", "wrong-ok", ["compare", "a", "b"],
+     lambda ctx: (ctx.bake("a"), ctx.bake("b"), ctx.edit_manifest("a", lambda m: m.__setitem__("models", []))),
+     2, [("manifest.json",), ("no model",)])
+for nm, extra in [("max-photons-negative", ["--max-photons", "-1"]),
+                  ("max-photons-2p64", ["--max-photons", "18446744073709551616"]),
+                  ("seed-negative", ["--seed", "-5"]),
+                  ("cap-below-batches", ["--photons-per-batch", "1073741824", "--max-photons", "1"])]:
+    case("message-truth-%s" % nm, "message", ["truth", "scene.json", "-o", "out"] + extra, scene_writer(), 2,
+         [extra[-2] if nm != "cap-below-batches" else "--max-photons"], max_seconds=5, must_not_exist=OUT_GONE)
+case("message-scene-nul-in-path", "message", ["bake", "scene.json", "-o", "out"],
+     lambda ctx: (ctx.small_vdb("ok.vdb"), ctx.scene(models=[vdb_model(path="ok.vdb\x00/../../etc/passwd")])),
+     2, [("scene.json",), ("control character",)], needs_vdb=True, must_not_exist=OUT_GONE)
+
+
 def _shift_transform(ctx):
     ctx.bake("a")
     ctx.bake("b")
@@ -1578,10 +1636,10 @@ case("message-cli-voxelize-bounds-count", "message", ["voxelize", "m.obj", "--bo
      raw_writer("m.obj", TRIANGLE_OBJ), 2, ["--bounds"], must_not_exist=["m.vdb", "*.tmp-*"])
 for how in ["truncated-1", "truncated-header", "bad-header-crc", "bad-section-crc", "big-endian", "version-3",
             "file-bytes-huge", "solutions-4096", "index-min-overflow", "matrix-nan", "matrix-singular",
-            "masks-offset-past-end", "name-unterminated"]:
+            "masks-offset-past-end", "name-unterminated", "direction-not-index"]:
     case("message-lbh-%s" % how, "message", ["inspect", "m.lbh"], (lambda h: lambda ctx: lbh_variant(ctx, "m.lbh", h))(how),
          2, ["m.lbh"], timeout=HANG_T, max_seconds=5, desc="damaged .lbh (%s): input error naming the file" % how)
-for how in ["truncated-1", "index-min-overflow", "name-unterminated"]:
+for how in ["truncated-1", "index-min-overflow", "name-unterminated", "direction-not-index"]:
     case("message-decompress-lbh-%s" % how, "message", ["decompress", "m.lbh", "-o", "x.vdb"],
          (lambda h: lambda ctx: lbh_variant(ctx, "m.lbh", h))(how), 2, ["m.lbh"], timeout=HANG_T, max_seconds=5,
          must_not_exist=["x.vdb", "*.tmp-*"])

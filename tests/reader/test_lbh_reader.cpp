@@ -196,6 +196,18 @@ TEST_CASE("Reader rejects truncated, corrupted, wrong-version and oversized file
     fix_header_crc(b);
     CHECK(status_of(b) == lbh::Status::Truncated);
   }
+  SECTION("a direction that is not its index's, behind valid checksums") {
+    std::string b = good;
+    auto* p = reinterpret_cast<const unsigned char*>(b.data());
+    const int index = lbh::detail::rdi32(p + 256 + 16);
+    const int m = index < 0 ? 5 : (index % 18) + 1;  // another lattice direction than the entry's
+    put32(b, 256 + 20, static_cast<std::uint32_t>(lbh::lattice_cx(m)));
+    put32(b, 256 + 24, static_cast<std::uint32_t>(lbh::lattice_cy(m)));
+    put32(b, 256 + 28, static_cast<std::uint32_t>(lbh::lattice_cz(m)));
+    fix_table_crc(b);
+    CHECK(status_of(b, &msg) == lbh::Status::BadHeader);
+    CHECK(msg.find("is not that of its index") != std::string::npos);
+  }
   SECTION("inconsistent masks and offsets behind valid checksums") {
     std::string b = good;
     auto* p = reinterpret_cast<const unsigned char*>(b.data());
