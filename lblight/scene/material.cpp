@@ -53,6 +53,11 @@ Material default_wood_for(const Material& medium) {
   return w;
 }
 
+Material default_wood(const Material& medium, bool calibrated) {
+  if (calibrated) return *material_preset("bark");
+  return default_wood_for(medium);
+}
+
 std::optional<Material> material_preset(const std::string& name) {
   if (name == "cloud") return uniform("cloud", 0.008, 0.792, 0.9, false);
   if (name == "dogrose")
@@ -60,13 +65,28 @@ std::optional<Material> material_preset(const std::string& name) {
   if (name == "pmma") return rgb("pmma", {0.01, 0.01, 0.01}, {0.99, 0.99, 0.99}, {0.80, -0.88, -0.88}, false);
   if (name == "leaf") return leaf();
   if (name == "bark") {
+    // Wood as a path trace sees it (docs/model.md, "Wood"): a voxel of bark holds opaque,
+    // diffusely reflecting surface, which scatters like a Lambertian sphere (g = -4/9) with the
+    // bark's reflectance as albedo, and stops light within a voxel or two (sigma_t = 4 per voxel).
+    constexpr double kSigmaT = 4.0;
+    constexpr std::array<double, 3> kAlbedo{0.25, 0.17, 0.11};
+    std::array<double, 3> sa{}, ss{};
+    for (int c = 0; c < kChannels; ++c) {
+      ss[c] = kSigmaT * kAlbedo[c];
+      sa[c] = kSigmaT - ss[c];
+    }
+    return rgb("bark", sa, ss, {-4.0 / 9.0, -4.0 / 9.0, -4.0 / 9.0}, true);
+  }
+  if (name == "paper-bark") {
     Material b = default_wood_for(leaf());
-    b.name = "bark";
+    b.name = "paper-bark";
     return b;
   }
   return std::nullopt;
 }
 
-std::vector<std::string> material_preset_names() { return {"cloud", "dogrose", "pmma", "leaf", "bark"}; }
+std::vector<std::string> material_preset_names() {
+  return {"cloud", "dogrose", "pmma", "leaf", "bark", "paper-bark"};
+}
 
 }  // namespace lblight

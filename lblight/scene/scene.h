@@ -127,6 +127,10 @@ enum class IterationMode { Auto, Paper, Fixed };
 // or LB steps corrected by a diffusion solve (solve/dsa.h).
 enum class SolverMethod { Plain, BiCGStab, Dsa };
 
+// The LB model of a scene that names none ("solver": {"model": ...}): physical light by default;
+// "paper" reproduces the papers bit for bit (docs/model.md).
+inline constexpr const char* kDefaultLbModel = "calibrated";
+
 struct SolverSpec {
   IterationMode mode = IterationMode::Auto;
   SolverMethod method = SolverMethod::Plain;
@@ -136,7 +140,7 @@ struct SolverSpec {
   int check_interval = 0;      // steps between convergence checks; 0 = automatic
   Precision precision = Precision::Float32;
   std::optional<StateLayout> state;  // "state": "two-levels", "in-place"; unset ("auto"): as memory allows
-  LbModel model;               // "model": "paper" (default) or "calibrated", with "calibration"
+  LbModel model;               // "model": "calibrated" (a scene's default) or "paper", with "calibration"
 };
 
 // "output": {"lbh": {"threshold": 0.01, "relative": true}} asks bake for <model>.lbh next to

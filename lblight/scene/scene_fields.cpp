@@ -1,5 +1,6 @@
 #include "lblight/scene/scene_fields.h"
 
+#include <cstdio>
 #include <stdexcept>
 
 #include "lblight/lattice/lb_model.h"
@@ -12,6 +13,14 @@ namespace {
 
 using nlohmann::json;
 
+std::string bound_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// Every range message states both bounds (a size of 1e10 told only "a positive length" before):
+// a description without a "lo..hi" range gets the field's bounds appended.
 FieldSpec number(const std::string& key, double lo, double hi, json fallback, const std::string& allowed) {
   FieldSpec f;
   f.key = key;
@@ -19,7 +28,9 @@ FieldSpec number(const std::string& key, double lo, double hi, json fallback, co
   f.lo = lo;
   f.hi = hi;
   f.fallback = std::move(fallback);
-  f.allowed = allowed;
+  f.allowed = allowed.find("..") != std::string::npos
+                  ? allowed
+                  : allowed + " (" + bound_text(lo) + ".." + bound_text(hi) + ")";
   return f;
 }
 FieldSpec integer(const std::string& key, double lo, double hi, json fallback, const std::string& allowed) {
@@ -190,7 +201,7 @@ std::vector<ObjectSpec> build() {
                 text("precision", "float32", {"float32", "float64", "float16"}, "float32, float64, float16"),
                 text("method", "plain", {"plain", "bicgstab", "dsa"}, kSolverMethodNames),
                 text("state", "auto", {"auto", "two-levels", "in-place"}, "auto, two-levels, in-place"),
-                text("model", "paper", {"paper", "calibrated"}, "paper, calibrated"),
+                text("model", kDefaultLbModel, {"paper", "calibrated"}, "paper, calibrated"),
                 custom("calibration", ref("solver.calibration"), "the calibrated model's corrections, each on or off")}});
   ObjectSpec calibration{"solver.calibration", "Corrections of the calibrated LB model (docs/model.md).", {}};
   for (const char* name : kCalibrationNames) calibration.fields.push_back(boolean(name, nullptr, "true or false"));

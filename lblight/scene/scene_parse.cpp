@@ -306,7 +306,7 @@ DensitySpec read_density(const JsonReader& r, const std::filesystem::path& dir) 
   return d;
 }
 
-ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
+ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir, const LbModel& lb_model) {
   const ObjectSpec& o = scene_object("model");
   check_fields(r, o);
   ModelSpec m;
@@ -316,7 +316,7 @@ ModelSpec read_model(const JsonReader& r, const std::filesystem::path& dir) {
     r.fail("model name '" + m.name + "' is not usable as a file name; allowed: 1-64 of A-Z a-z 0-9 _ - .", "name");
   m.density = read_density(r.child("density"), dir);
   m.material = read_material(r.child("material"));
-  m.wood_material = r.has("wood_material") ? read_material(r.child("wood_material")) : default_wood_for(m.material);
+  m.wood_material = r.has("wood_material") ? read_material(r.child("wood_material")) : default_wood(m.material, lb_model.calibrated);
   m.margin = static_cast<int>(integer_field(r, o, "margin"));
   m.crop = boolean_field(r, o, "crop");
   m.ground = boolean_field(r, o, "ground");
@@ -556,18 +556,20 @@ Scene parse_scene(const std::string& text, const std::filesystem::path& file) {
   if (version != kSceneVersion)
     root.fail("scene version " + std::to_string(version) + " is not supported; allowed: 1", "version");
   scene.name = root.string_or("name", file.stem().string());
+  // The solver first: a model's default wood depends on the LB model (docs/model.md, "Wood").
+  if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
+  else scene.solver.model.calibrated = std::string(kDefaultLbModel) == "calibrated";
   const JsonReader models = root.child("models");
   if (!models.json().is_array() || models.json().empty()) models.fail("expected a non-empty list of models");
   std::set<std::string> names;
   for (std::size_t i = 0; i < models.json().size(); ++i) {
-    ModelSpec m = read_model(models.element(i), scene.dir);
+    ModelSpec m = read_model(models.element(i), scene.dir, scene.solver.model);
     if (!names.insert(m.name).second)
       models.element(i).fail("model name '" + m.name + "' is used twice; names must be unique", "name");
     scene.models.push_back(std::move(m));
   }
   if (root.has("lighting")) scene.lighting = read_lighting(root.child("lighting"));
   else scene.lighting.solutions = parse_solution_list("all", root.location());  // "auto" with no constraints
-  if (root.has("solver")) scene.solver = read_solver(root.child("solver"));
   if (root.has("output")) scene.output = read_output(root.child("output"));
   if (root.has("ground")) scene.ground = read_ground(root.child("ground"));
   if (root.has("forest")) {

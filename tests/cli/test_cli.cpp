@@ -23,7 +23,7 @@ const char* kTinyScene = R"({
 })";
 
 std::string model_with(const std::string& density, const std::string& material) {
-  return R"({"version": 1, "models": [{"name": "m", "density": )" + density + R"(, "material": )" + material + "}]}";
+  return R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "m", "density": )" + density + R"(, "material": )" + material + "}]}";
 }
 const std::string kProc = R"({"type": "procedural", "resolution": 8})";
 

@@ -18,7 +18,7 @@ using namespace lblight::test;
 namespace {
 
 const char* kModel = R"({"name": "tree", "density": {"type": "procedural", "shape": "plant", "resolution": 12, "seed": 4,
-                         "size": 1.2}, "material": "leaf", "wood_material": "bark"})";
+                         "size": 1.2}, "material": "leaf", "wood_material": "paper-bark"})";
 constexpr double kVoxel = 0.1;
 
 // Index coordinate -> world translation of the model's grid (from validate --json).
@@ -42,7 +42,7 @@ std::array<double, 3> aligned(const std::array<double, 3>& t, double x, double y
 std::string forest_scene(const std::string& instances, const std::string& extra = "") {
   return std::string(R"({"version": 1, "models": [)") + kModel +
          R"(], "lighting": {"mode": "base", "instance_rotation": "yaw"},
-             "solver": {"iterations": "auto", "tolerance": 1e-6},
+             "solver": {"iterations": "auto", "tolerance": 1e-6, "model": "paper"},
              "forest": {"instances": )" + instances + extra + "}}";
 }
 
@@ -54,9 +54,9 @@ std::string instance(const std::array<double, 3>& p, double yaw) {
 std::string static_scene(const std::string& density_vdb, bool wood) {
   return std::string(R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb", "path": ")") + density_vdb +
          R"(", "grid": "density")" + (wood ? R"(, "wood_grid": "brown")" : "") +
-         R"(}, "material": "leaf", "wood_material": "bark"}],
+         R"(}, "material": "leaf", "wood_material": "paper-bark"}],
              "lighting": {"mode": "static", "sun": {"elevation": 35, "azimuth": 120}, "intensity": 1.5, "ambient": 0.1},
-             "solver": {"iterations": "auto", "tolerance": 1e-6}})";
+             "solver": {"iterations": "auto", "tolerance": 1e-6, "model": "paper"}})";
 }
 
 const char* kSun = "--sun-elevation 35 --sun-azimuth 120 --intensity 1.5 --ambient 0.1";

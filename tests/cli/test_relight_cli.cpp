@@ -16,8 +16,8 @@ namespace {
 
 std::string plant_scene(const std::string& lighting) {
   return R"({"version": 1, "models": [{"name": "tree", "density": {"type": "procedural", "shape": "plant",
-             "resolution": 12, "seed": 4}, "material": "leaf", "wood_material": "bark"}],
-             "lighting": )" + lighting + R"(, "solver": {"iterations": "auto", "tolerance": 1e-6}})";
+             "resolution": 12, "seed": 4}, "material": "leaf", "wood_material": "paper-bark"}],
+             "lighting": )" + lighting + R"(, "solver": {"iterations": "auto", "tolerance": 1e-6, "model": "paper"}})";
 }
 
 }  // namespace

@@ -53,7 +53,7 @@ def main():
             if wood_mat:
                 model["wood_material"] = wood_mat
             scene = {"version": 1, "models": [model], "lighting": {"mode": "base", "solutions": "0,1,8,13"},
-                     "solver": {"iterations": 30}, "output": {"full_box": True}}
+                     "solver": {"iterations": 30, "model": "paper"}, "output": {"full_box": True}}
             with open(os.path.join(tmp, name + ".json"), "w") as f:
                 json.dump(scene, f)
             out = os.path.join(tmp, "out-" + name)

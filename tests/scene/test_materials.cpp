@@ -42,9 +42,34 @@ TEST_CASE("Presets carry the papers' parameters", "[materials]") {
   CHECK(pmma->channel[2].sigma_s == 0.99);
   CHECK_FALSE(pmma->absorbs);
 
+  const auto paper_bark = material_preset("paper-bark");  // [Steele2009] sec. 4.1: leaf sigmas, g = -1
+  REQUIRE(paper_bark);
+  for (int c = 0; c < kChannels; ++c) {
+    CHECK(paper_bark->channel[c].g == -1.0);
+    CHECK(paper_bark->channel[c].sigma_s == material_preset("leaf")->channel[c].sigma_s);
+  }
+  CHECK_FALSE(paper_bark->absorbs);
+  CHECK_FALSE(material_preset("granite"));
+}
+
+TEST_CASE("Bark is opaque, brown, diffusely reflecting wood (docs/model.md, Wood)", "[scene][materials]") {
   const auto bark = material_preset("bark");
   REQUIRE(bark);
-  for (int c = 0; c < kChannels; ++c) CHECK(bark->channel[c].g == -1.0);
-  CHECK_FALSE(bark->absorbs);
-  CHECK_FALSE(material_preset("granite"));
+  const double albedo[3] = {0.25, 0.17, 0.11};
+  for (int c = 0; c < kChannels; ++c) {
+    CHECK(bark->channel[c].sigma_t() == Approx(4.0));
+    CHECK(bark->channel[c].sigma_s / bark->channel[c].sigma_t() == Approx(albedo[c]));
+    CHECK(bark->channel[c].g == Approx(-4.0 / 9.0));  // a diffuse (Lambertian) sphere's phase function
+  }
+  CHECK(albedo[0] > albedo[1]);  // brown: red reflected most
+  CHECK(bark->absorbs);
+  // the default wood follows the LB model: physical bark, or the papers' wood behind "paper"
+  const Material leaf = *material_preset("leaf");
+  CHECK(default_wood(leaf, true).name == "bark");
+  const Material paper = default_wood(leaf, false);
+  for (int c = 0; c < kChannels; ++c) {
+    CHECK(paper.channel[c].g == -1.0);
+    CHECK(paper.channel[c].sigma_a == leaf.channel[c].sigma_a);
+  }
+  CHECK_FALSE(paper.absorbs);
 }

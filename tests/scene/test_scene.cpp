@@ -40,8 +40,15 @@ TEST_CASE("A minimal scene parses with documented defaults", "[scene]") {
   CHECK(s.dir == "dir");
   CHECK(s.models[0].margin == 1);
   CHECK(s.models[0].material.name == "cloud");
-  CHECK(s.models[0].wood_material.channel[0].g == -1.0);
-  CHECK_FALSE(s.models[0].wood_material.absorbs);
+  CHECK(s.solver.model.calibrated);  // physical light by default (docs/scene-format.md, "model")
+  CHECK(s.models[0].wood_material.name == "bark");
+  CHECK(s.models[0].wood_material.absorbs);
+  // the papers' model keeps the papers' wood: the medium's sigmas, g = -1, nothing absorbed
+  const Scene paper = parse_scene(std::string(kMinimal).insert(1, R"("solver": {"model": "paper"},)"), "scene.json");
+  CHECK_FALSE(paper.solver.model.calibrated);
+  CHECK(paper.models[0].wood_material.channel[0].g == -1.0);
+  CHECK(paper.models[0].wood_material.channel[0].sigma_s == paper.models[0].material.channel[0].sigma_s);
+  CHECK_FALSE(paper.models[0].wood_material.absorbs);
   CHECK(s.lighting.mode == LightingMode::Base);
   CHECK(s.lighting.solutions.size() == 19);
   CHECK(s.solver.mode == IterationMode::Auto);
@@ -90,7 +97,7 @@ TEST_CASE("Every bad field is named by its JSON path", "[scene]") {
   CHECK(error_path(std::string(kMinimal).insert(1, R"("lighting": {"mode": "base", "solutions": "0,19"},)")) ==
         "/lighting/solutions");
   CHECK(error_path(std::string(kMinimal).insert(1, R"("solver": {"model": "exact"},)")) == "/solver/model");
-  CHECK(error_path(std::string(kMinimal).insert(1, R"("solver": {"calibration": {"delta_m": false}},)")) ==
+  CHECK(error_path(std::string(kMinimal).insert(1, R"("solver": {"model": "paper", "calibration": {"delta_m": false}},)")) ==
         "/solver/calibration");
   CHECK(error_path(std::string(kMinimal).insert(
             1, R"("solver": {"model": "calibrated", "calibration": {"delta": false}},)")) == "/solver/calibration/delta");
@@ -155,7 +162,8 @@ TEST_CASE("Grid rules: density after scale and rho * sigma_t < 2", "[scene][vali
   Scene s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural",
       "resolution": 10, "density_scale": 1.5}, "material": "cloud"}]})", "s.json");
   CHECK_FALSE(expect_invalid_input([&] { make_plan(s); }, "after density_scale").where().voxel.empty());
-  s = parse_scene(R"({"version": 1, "models": [{"name": "c", "density": {"type": "procedural", "resolution": 10},
+  // the papers' model only (the calibrated one loses 1 - exp(-rho sigma_t |c|) < 1 per step)
+  s = parse_scene(R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "c", "density": {"type": "procedural", "resolution": 10},
       "material": {"sigma_a": 0.5, "sigma_s": [1.0, 1.6, 1.0], "g": 0}}]})", "s.json");
   const Error e = expect_invalid_input([&] { make_plan(s); }, "rho * sigma_t < 2");
   CHECK(std::string(e.what()).find("channel green") != std::string::npos);
@@ -209,7 +217,7 @@ TEST_CASE("Auto iterations never stop before light can cross the lattice", "[sce
 
 TEST_CASE("Sec. 6 warning where 1 + rho * Omega_mm < 0, and none where it is not", "[scene][validate]") {
   const auto warned = [](const std::string& material) {
-    const Scene s = parse_scene(R"({"version": 1, "models": [{"name": "b", "density": {"type": "procedural",
+    const Scene s = parse_scene(R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "b", "density": {"type": "procedural",
         "shape": "box", "resolution": 6}, "material": )" + material + "}]}",
                                 "s.json");
     for (const std::string& w : make_plan(s).warnings)

@@ -19,7 +19,7 @@ namespace {
 struct SmallReport {
   Scene scene = parse_scene(R"({"version": 1, "models": [{"name": "m", "density": {"type": "procedural",
       "shape": "box", "resolution": 8}, "material": {"sigma_a": [0.3, 0.02, 0.15], "sigma_s": [0.5, 0.78, 0.65],
-      "g": 0}}], "lighting": {"solutions": "5"}, "solver": {"tolerance": 1e-3}})",
+      "g": 0}}], "lighting": {"solutions": "5"}, "solver": {"tolerance": 1e-3, "model": "paper"}})",
                             "s.json");
   BakePlan plan = make_plan(scene);
   ReportOptions opt;

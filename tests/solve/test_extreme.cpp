@@ -666,7 +666,7 @@ void write_grid(const fs::path& file, float fill, float odd_one, bool with_wood)
 }
 
 std::string vdb_scene(const std::string& material, const std::string& extra = "") {
-  return R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb", "path": "grid.vdb")" + extra +
+  return R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "m", "density": {"type": "vdb", "path": "grid.vdb")" + extra +
          R"(}, "material": )" + material + "}]}";
 }
 
@@ -710,7 +710,7 @@ TEST_CASE("Sec. 6 edge cases: negative density, rho*sigma_t == 2, wood, backscat
   {
     TempDir tmp;
     write_grid(tmp / "grid.vdb", 1.0f, 1.0f, true);
-    const CliResult r = bake_in(tmp, R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb",
+    const CliResult r = bake_in(tmp, R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "m", "density": {"type": "vdb",
         "path": "grid.vdb", "wood_grid": "wood"}, "material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": 0},
         "wood_material": {"name": "heavy", "sigma_a": 0.5, "sigma_s": [1.0, 1.0, 1.6], "g": 0}}]})");
     INFO(r.err);
@@ -721,7 +721,7 @@ TEST_CASE("Sec. 6 edge cases: negative density, rho*sigma_t == 2, wood, backscat
     CHECK(r.err.find("wood_material") != std::string::npos);
     CHECK_FALSE(fs::exists(tmp / "out"));
     // backscattering wood below rho * sigma_t = 2 that would diverge (the test case above)
-    const CliResult b = bake_in(tmp, R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb",
+    const CliResult b = bake_in(tmp, R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "m", "density": {"type": "vdb",
         "path": "grid.vdb", "wood_grid": "wood"}, "material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": 0},
         "wood_material": {"name": "mirror", "sigma_a": 0.2, "sigma_s": [0.5, 1.7, 0.5], "g": -1}}]})");
     INFO(b.err);
@@ -732,7 +732,7 @@ TEST_CASE("Sec. 6 edge cases: negative density, rho*sigma_t == 2, wood, backscat
     CHECK(b.err.find("wood_material") != std::string::npos);
     CHECK_FALSE(fs::exists(tmp / "out"));
     // at the limit rho * (sigma_a + 2 sigma_s) = 1.999 it is accepted
-    const CliResult ok = bake_in(tmp, R"({"version": 1, "models": [{"name": "m", "density": {"type": "vdb",
+    const CliResult ok = bake_in(tmp, R"({"version": 1, "solver": {"model": "paper"}, "models": [{"name": "m", "density": {"type": "vdb",
         "path": "grid.vdb", "wood_grid": "wood"}, "material": {"sigma_a": 0.1, "sigma_s": 0.5, "g": 0},
         "wood_material": {"name": "mirror", "sigma_a": 0.001, "sigma_s": 0.999, "g": -1}}]})");
     INFO(ok.err);
@@ -817,14 +817,16 @@ void bake_and_check(const std::string& scene, double bound, bool expect_warning)
   }
 }
 
-std::string two_models(const std::string& cloud_material, const std::string& leaf, const std::string& wood) {
+std::string two_models(const std::string& cloud_material, const std::string& leaf, const std::string& wood,
+                       const std::string& lb_model) {
   return R"({"version": 1, "models": [
       {"name": "cloud", "density": {"type": "procedural", "shape": "cloud", "resolution": 12}, "material": )" +
          cloud_material + R"(},
       {"name": "plant", "density": {"type": "procedural", "shape": "plant", "resolution": 12, "seed": 2},
        "material": )" + leaf + R"(, "wood_material": )" + wood + R"(}],
     "lighting": {"mode": "base", "solutions": "0,5,6,13"},
-    "solver": {"iterations": "auto", "tolerance": 1e-4, "max_iterations": 1500}, "output": {"full_box": true}})";
+    "solver": {"iterations": "auto", "tolerance": 1e-4, "max_iterations": 1500, "model": ")" + lb_model +
+         R"("}, "output": {"full_box": true}})";
 }
 }  // namespace
 
@@ -833,7 +835,8 @@ TEST_CASE("bake writes only finite values: >= -1e-6 max without the sec. 6 warni
   bake_and_check(two_models(R"({"name": "stiff", "sigma_a": 0.001, "sigma_s": 1.998, "g": [0.999, 0, 1]})",
                             R"({"name": "stiffleaf", "sigma_a": [0.999, 0.5, 0.001], "sigma_s": [1.0, 1.499, 0.999],
                                 "g": [0.3, 1, -0.999], "absorb": true})",
-                            R"({"name": "stiffwood", "sigma_a": 0.001, "sigma_s": 0.999, "g": -1})"),
+                            R"({"name": "stiffwood", "sigma_a": 0.001, "sigma_s": 0.999, "g": -1})", "paper"),
                  0.5, true);
-  bake_and_check(two_models(R"("cloud")", R"("leaf")", R"("bark")"), 1e-6, false);
+  bake_and_check(two_models(R"("cloud")", R"("leaf")", R"("paper-bark")", "paper"), 1e-6, false);
+  bake_and_check(two_models(R"("cloud")", R"("leaf")", R"("bark")", "calibrated"), 1e-6, false);  // the defaults
 }
