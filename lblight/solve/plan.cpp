@@ -109,7 +109,10 @@ double mean_cosine(double g) {
 // stops on the measured error): the slowest diffusion mode of the occupied box plus the
 // per-step loss of absorbing materials, on top of the crossing time.
 // The slowest decay rate per step of that estimate (1 - q of the plain iteration).
-double slowest_decay(const ModelPlan& mp) {
+// `as_solved`: absorption as the LB model removes it (the calibrated model's remove_absorbed
+// drains every medium, a cloud's too), for validate's estimate; without it, the material's own
+// absorb flag, the contraction hint the convergence monitor was measured with.
+double slowest_decay(const ModelPlan& mp, bool as_solved = false) {
   const Dims& d = mp.lattice.dims;
   double rho_sum = 0;
   std::size_t n = 0;
@@ -125,19 +128,19 @@ double slowest_decay(const ModelPlan& mp) {
     const OpticalParams& p = mp.spec->material.channel[c];
     // eq. (4) with the transport (reduced) scattering of an anisotropic phase function
     const OpticalParams transport{p.sigma_a, p.sigma_s * (1.0 - mean_cosine(p.g)), 0.0};
-    const double diff =
-        std::max(1e-6, diffusion_coefficient(transport, std::max(rho, 1e-6), mp.spec->material.absorbs));
+    const bool absorbs = as_solved ? model_absorbs(mp.spec->material.absorbs, mp.model) : mp.spec->material.absorbs;
+    const double diff = std::max(1e-6, diffusion_coefficient(transport, std::max(rho, 1e-6), absorbs));
     const double pi2 = 9.8696044010893586;
     const double decay_diffusion = diff * pi2 *
                                    (1.0 / (d.nx * d.nx) + 1.0 / (d.ny * d.ny) + 1.0 / (d.nz * d.nz));
-    const double decay_absorb = mp.spec->material.absorbs ? rho * p.sigma_a : 0.0;
+    const double decay_absorb = absorbs ? rho * p.sigma_a : 0.0;
     slowest = std::min(slowest, decay_diffusion + decay_absorb);
   }
   return std::min(1.0, slowest);
 }
 
 double estimate_steps(const ModelPlan& mp, double tol) {
-  return mp.lattice.dims.longest() + std::log(1.0 / tol) / slowest_decay(mp);
+  return mp.lattice.dims.longest() + std::log(1.0 / tol) / slowest_decay(mp, /*as_solved=*/true);
 }
 
 bool same_channel(const ChannelMaterials& a, const ChannelMaterials& b, int count) {
