@@ -145,6 +145,10 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
                              "their weights) + ambient x B00 + sky x (downward directions + half the level ones); 1 = the open-air value "
                              "of a unit sun (ambient a: 18 a, sky S: 9 S)";
   nlohmann::json dmeta = box;
+  // The bake's self-description travels with the relit file (docs/output-format.md).
+  for (const char* key : {"lblight_voxel_size", "lblight_material_medium", "lblight_material_wood",
+                          "lblight_density_meaning", "lblight_lb_model"})
+    if (r.density_metadata.contains(key)) dmeta[key] = r.density_metadata[key];
   const nlohmann::json meta = {{"lblight_version", kVersion},
                                {"lblight_command", global.command_line},
                                {"lblight_source", vdb.string()},
@@ -155,8 +159,9 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
                                {"lblight_sky", a.sky},
                                {"lblight_weights", weights.dump()},
                                {"lblight_delta_m", bake_solved_with_delta_m(vdb)}};
-  const std::vector<DenseGridOut> grids = {{"light", nullptr, &r.light, false, lmeta},
-                                           {"density", &r.density, nullptr, true, dmeta}};
+  std::vector<DenseGridOut> grids = {{"light", nullptr, &r.light, false, lmeta},
+                                     {"density", &r.density, nullptr, true, dmeta}};
+  if (!r.wood.empty()) grids.push_back({"brown", &r.wood, nullptr, false, box});  // where the wood material applies
   // Written under a temporary name and renamed: the output appears complete or not at all.
   write_file_atomically(out, [&](const fs::path& tmp) {
     write_vdb(tmp, r.frame, grids, meta);

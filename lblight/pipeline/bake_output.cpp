@@ -62,6 +62,22 @@ nlohmann::json material_json(const Material& m) {
   return j;
 }
 
+// Self-describing (docs/output-format.md, "What a .vdb says about itself"): the density grid
+// carries what a shader needs without manifest.json beside the file.
+nlohmann::json material_metadata(const ModelPlan& mp, bool has_wood) {
+  const auto& m = mp.grid.index_to_world;
+  nlohmann::json j;
+  j["lblight_voxel_size"] = std::sqrt(m[0] * m[0] + m[4] * m[4] + m[8] * m[8]);
+  j["lblight_material_medium"] = material_json(mp.spec->material).dump();
+  if (has_wood) j["lblight_material_wood"] = material_json(mp.spec->wood_material).dump();
+  j["lblight_density_meaning"] =
+      "density d in 0..1 scales the material: extinction per world unit = d (sigma_a + sigma_s) / "
+      "lblight_voxel_size, scattering d sigma_s / lblight_voxel_size (sigma per voxel edge and colour channel "
+      "in lblight_material_medium, or lblight_material_wood where brown > 0.5)";
+  j["lblight_lb_model"] = mp.model.name();
+  return j;
+}
+
 std::array<double, 3> lattice_origin_world(const ModelPlan& mp) {
   const auto& m = mp.grid.index_to_world;
   std::array<double, 3> o{};
@@ -194,7 +210,7 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   worker_.post([this, &mp, has_wood] {
     const auto t0 = std::chrono::steady_clock::now();
     const nlohmann::json box = lattice_box_json(mp);
-    vdb_->add({"density", &medium_density_, nullptr, true, box});
+    vdb_->add({"density", &medium_density_, nullptr, true, merged(box, material_metadata(mp, has_wood))});
     if (has_wood) {
       std::vector<float> brown(mp.lattice.dims.count());
       for (std::size_t i = 0; i < brown.size(); ++i)

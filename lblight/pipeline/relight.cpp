@@ -96,6 +96,7 @@ BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::option
   const DenseGridIn density = read_vdb_grid_dense(vdb, "density", ctx);
   frame_ = density.frame;
   density_ = density.values[0];
+  density_metadata_ = density.metadata;
   check_manifest_lattice(vdb, frame_);
   if (names.count("brown")) wood_ = read_vdb_grid_dense(vdb, "brown", ctx).values[0];
   for (int j : solutions) {
@@ -137,6 +138,8 @@ RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest&
   const BaseSolutions base(vdb, needed, "this sun", ctx);
   out.frame = base.frame();
   out.density = base.density();
+  out.wood = base.wood();
+  out.density_metadata = base.density_metadata();
   const std::size_t n = out.frame.dims.count();
   std::array<std::vector<float>, 3> sum;
   for (int c = 0; c < 3; ++c) {

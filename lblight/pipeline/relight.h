@@ -60,6 +60,7 @@ class BaseSolutions {
   const DenseFrame& frame() const { return frame_; }
   const std::vector<float>& density() const { return density_; }
   const std::vector<float>& wood() const { return wood_; }  // empty when the model has none
+  const nlohmann::json& density_metadata() const { return density_metadata_; }  // materials, voxel size
   bool has(int solution) const { return grids_.count(solution) > 0; }
   // sum_k weight_k B_k per channel, in double and rounded once, at `nodes` (every node when
   // null); out[c] must hold frame().dims.count() values.
@@ -70,6 +71,7 @@ class BaseSolutions {
   std::filesystem::path file_;
   DenseFrame frame_;
   std::vector<float> density_, wood_;
+  nlohmann::json density_metadata_;
   std::map<int, std::array<std::vector<float>, 3>> grids_;
 };
 
@@ -77,6 +79,8 @@ struct RelitModel {
   DenseFrame frame;                            // the bake's lattice box
   std::array<std::vector<float>, 3> light;     // 0 outside the occupied nodes and their neighbours
   std::vector<float> density;                  // on the same frame
+  std::vector<float> wood;                     // 1 on wood nodes; empty when the model has none
+  nlohmann::json density_metadata;            // the bake's density metadata: materials, voxel size
   std::vector<std::pair<int, double>> weights; // (base solution, weight) used
 };
 

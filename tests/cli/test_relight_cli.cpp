@@ -2,7 +2,9 @@
 // that sun (float precision), and a sun the bake cannot serve is refused by name.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include <nlohmann/json.hpp>
 
@@ -37,6 +39,21 @@ TEST_CASE("relight of the base solutions equals the static bake of that sun, on 
   const DenseGridIn stat = read_vdb_grid_dense(tmp / "static" / "tree.vdb", "light");
   const DenseGridIn density = read_vdb_grid_dense(tmp / "relit.vdb", "density");
   REQUIRE(relit.frame.dims == stat.frame.dims);
+  // Self-describing: the bake's and the relit file's density carry the materials and voxel size,
+  // and the relit file keeps where the wood is.
+  for (const std::filesystem::path file : {tmp / "base" / "tree.vdb", tmp / "relit.vdb"}) {
+    const nlohmann::json& meta = read_vdb_grid_dense(file, "density").metadata;
+    INFO(file << ": " << meta.dump());
+    REQUIRE(meta.contains("lblight_material_medium"));
+    const nlohmann::json medium = nlohmann::json::parse(meta["lblight_material_medium"].get<std::string>());
+    CHECK(medium["sigma_s"][1].get<double>() == Approx(0.909));  // the leaf preset
+    const nlohmann::json wood = nlohmann::json::parse(meta["lblight_material_wood"].get<std::string>());
+    CHECK(wood["g"][0].get<double>() == -1.0);  // paper-bark
+    CHECK(meta["lblight_voxel_size"].get<double>() > 0);
+    CHECK(meta["lblight_lb_model"] == "paper");
+  }
+  const DenseGridIn brown = read_vdb_grid_dense(tmp / "relit.vdb", "brown");
+  CHECK(std::count(brown.values[0].begin(), brown.values[0].end(), 1.0f) > 0);
   const Dims& d = relit.frame.dims;
   double worst = 0, peak = 0;
   int compared = 0, boundary_values = 0;
