@@ -5,6 +5,7 @@
 #include "lblight/core/error.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/pipeline/manifest.h"
+#include "lblight/scene/json_reader.h"
 #include "lblight/scene/material.h"
 
 namespace fs = std::filesystem;
@@ -58,6 +59,16 @@ bool has_grid(const nlohmann::json& inspected, const std::string& name) {
   for (const auto& g : inspected.at("grids"))
     if (g.at("name") == name) return true;
   return false;
+}
+
+// Whether an LbModel::name() ("paper", "calibrated", "calibrated (no delta_m, ...; with ...)")
+// names a model that solved with the delta-M scaling.
+bool lb_model_name_has_delta_m(const std::string& name) {
+  if (name.rfind("calibrated", 0) != 0) return false;
+  const std::size_t no = name.find("(no ");
+  if (no == std::string::npos) return true;
+  const std::size_t end = name.find_first_of(";)", no);
+  return name.substr(no, end - no).find("delta_m") == std::string::npos;
 }
 
 }  // namespace
@@ -173,6 +184,24 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
       v.materials[1] = m["materials"].contains("wood") ? from_json(m["materials"]["wood"], manifest_file_name, at + "/wood") : v.materials[0];
       known = true;
       v.delta_m = solved_with_delta_m(m);
+    }
+  }
+  if (!known) {  // the file's own description (docs/output-format.md): a .vdb away from its manifest
+    for (const auto& g : inspected.at("grids")) {
+      if (g.value("name", std::string()) != "density" || !g.contains("metadata")) continue;
+      const nlohmann::json& meta = g["metadata"];
+      if (!meta.contains("lblight_material_medium") || !meta["lblight_material_medium"].is_string()) break;
+      const auto material = [&](const char* key) {
+        return from_json(JsonReader::parse_strict(meta[key].get<std::string>(), vdb.string()), vdb.string(),
+                         std::string("density metadata ") + key);
+      };
+      v.materials[0] = material("lblight_material_medium");
+      v.materials[1] = meta.contains("lblight_material_wood") && meta["lblight_material_wood"].is_string()
+                           ? material("lblight_material_wood")
+                           : v.materials[0];
+      if (!relit && meta.contains("lblight_lb_model") && meta["lblight_lb_model"].is_string())
+        v.delta_m = lb_model_name_has_delta_m(meta["lblight_lb_model"].get<std::string>());
+      known = true;
     }
   }
   if (!known)

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "lblight/io/image_io.h"
+#include "lblight/io/vdb_io.h"
 #include "tests/support/test_support.h"
 
 using namespace lblight;
@@ -61,12 +62,24 @@ TEST_CASE("render: a bake to EXR + PNG, camera and sun in the header, the sunlit
   for (std::size_t k = 0; k < a.size(); k += 4) CHECK(a[k] == Approx(d[k] + i[k]).margin(2e-3 * (a[k] + 1e-3)));
 }
 
-TEST_CASE("render: a relit .vdb needs its material, unknown presets and sizes are refused by name", "[cli][render]") {
+TEST_CASE("render: a relit .vdb brings its materials or needs them named, unknown presets and sizes are refused by name",
+          "[cli][render]") {
   TempDir tmp;
   write_text(tmp / "scene.json", kScene);
   REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
   REQUIRE(run_cli("relight bake --sun-elevation 40 -o relit.vdb", tmp.path()).exit_code == 0);
-  const CliResult no = run_cli("render relit.vdb --sun-elevation 40 --size 16x16 -o x.exr", tmp.path());
+  // The relit file's own description (its density's material metadata) is the bake's materials.
+  REQUIRE(run_cli("render relit.vdb --sun-elevation 40 --size 16x16 -o own.exr", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("render relit.vdb --material leaf --wood-material bark --sun-elevation 40 --size 16x16 -o named.exr",
+                  tmp.path()).exit_code == 0);
+  int w = 0, h = 0;
+  CHECK(read_exr(tmp / "own.exr", w, h) == read_exr(tmp / "named.exr", w, h));
+  // Stripped of that metadata, the materials must be named.
+  const DenseGridIn light = read_vdb_grid_dense(tmp / "relit.vdb", "light");
+  const DenseGridIn density = read_vdb_grid_dense(tmp / "relit.vdb", "density");
+  write_vdb(tmp / "stripped.vdb", light.frame,
+            {{"light", nullptr, &light.values, false, {}}, {"density", &density.values[0], nullptr, true, {}}}, {});
+  const CliResult no = run_cli("render stripped.vdb --sun-elevation 40 --size 16x16 -o x.exr", tmp.path());
   CHECK(no.exit_code == 2);
   CHECK(no.err.find("--material") != std::string::npos);
   CHECK(!std::filesystem::exists(tmp.path() / "x.exr"));
