@@ -410,13 +410,22 @@ with open(os.path.join(bake, "tree.vdb"), "rb") as f:
 with open(cut, "wb") as f:
     f.write(data[:len(data) // 2])
 cases.append((cut, "cut short"))
+vdb = None
 try:
     import pyopenvdb as vdb
     sphere = os.path.join(bad, "sphere.vdb")
     vdb.write(sphere, grids=[vdb.createLevelSetSphere(1.0, voxelSize=0.1)])
     cases.append((sphere, "not an lblight bake"))
+    # The grids without the file's metadata still describe themselves (the density's materials):
+    # that imports; stripped of those too, it is refused.
+    self_described = os.path.join(bad, "self-described-light.vdb")
+    vdb.write(self_described, grids=vdb.readAll(relit)[0])
+    stripped_grids = vdb.readAll(relit)[0]
+    for g in stripped_grids:
+        for key in [k for k in g.metadata if k.startswith("lblight_")]:
+            del g[key]
     stripped = os.path.join(bad, "stripped-light.vdb")
-    vdb.write(stripped, grids=vdb.readAll(relit)[0])  # the grids without the file's metadata
+    vdb.write(stripped, grids=stripped_grids)
     cases.append((stripped, "without lblight metadata"))
     stripped_model = os.path.join(bad, "tree.vdb")
     vdb.write(stripped_model, grids=vdb.readAll(os.path.join(bake, "tree.vdb"))[0])
@@ -439,6 +448,12 @@ for path, why in cases:
             and sorted(o.name for o in scene.objects) == names)
     check(path in message and why in message and "Traceback" not in message and left,
           f"{os.path.basename(path)}: '{message.strip()}', nothing added: {left}")
+
+if vdb is not None:
+    bpy.ops.lblight.import_bake(filepath=self_described)
+    described = bpy.data.objects.get("self-described-light")
+    check(described is not None and lbmat.kind(described.active_material) == "static",
+          "a relit file without its file metadata imports from its density's own material description")
 
 with open(os.path.join(out, "result.json"), "w") as f:
     json.dump({**results, "seconds": timings, "failures": failures}, f, indent=1)

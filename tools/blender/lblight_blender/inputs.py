@@ -128,6 +128,21 @@ def _forest_plan(folder, manifest_path, manifest):
             "folder": folder, "manifest": manifest_path, "models": models, "instances": instances}
 
 
+def _self_described(path, info):
+    """(medium, wood) from the density grid's lblight_material_* metadata, or None without it."""
+    density = next((g for g in info["grids"] if g["name"] == "density"), None)
+    meta = density.get("metadata", {}) if density else {}
+    if not isinstance(meta.get("lblight_material_medium"), str):
+        return None
+    try:
+        medium = json.loads(meta["lblight_material_medium"])
+        wood = json.loads(meta["lblight_material_wood"]) if isinstance(meta.get("lblight_material_wood"), str) else medium
+    except ValueError as e:
+        raise InputError(f"{path}: its density's material metadata is not valid JSON ({e})")
+    entry = {"name": os.path.basename(path), "materials": {"medium": medium, "wood": wood}}
+    return _materials(entry, path)
+
+
 def _relit_plan(path, info, bake):
     meta = info["metadata"]
     names = [g["name"] for g in info["grids"]]
@@ -135,6 +150,12 @@ def _relit_plan(path, info, bake):
         raise InputError(f"{path}: a light grid without density; not a volume `lblight relight` wrote")
     source = meta.get("lblight_source") if isinstance(meta.get("lblight_source"), str) else None
     where = bake
+    described = _self_described(path, info)
+    if not where and described:  # the file says what it is made of (docs/output-format.md)
+        medium, wood = described
+        sun = {k: meta.get("lblight_" + k) for k in ("sun_elevation", "sun_azimuth", "intensity", "ambient", "sky")}
+        return {"kind": "static", "vdb": path, "name": os.path.splitext(os.path.basename(path))[0], "medium": medium,
+                "wood": wood, "voxel": None, "grids": names, "sun": sun, "source": path, "note": None}
     if not where:
         if source is None:
             raise InputError(f"{path}: a light + density volume without lblight metadata (stripped?), so its "
