@@ -92,8 +92,10 @@ int run_bench(const BenchArgs& a) {
       if (a.in_place && backend->bytes_per_system_in_place(lat.dims, precision) > 0) variants.push_back({1, StateLayout::InPlace});
       for (const auto& [block, layout] : variants)
         for (const std::string& collision : a.collisions) {
+          RunContext ctx;
+          ctx.cancel = &g_interrupted;  // a long --steps stops on Ctrl-C
           const ThroughputRun run = measure_throughput(*backend, lat, precision, a.systems, a.steps, 0.3, 2.0, block,
-                                                       layout, collision == "cubic");
+                                                       layout, collision == "cubic", ctx);
           // What one update moves to and from memory: the whole update's bytes once per pass
           // over the state, i.e. divided by the steps one pass runs (temporal blocking), and
           // only for the nodes a step sweeps (streaming by position; an estimate from below:

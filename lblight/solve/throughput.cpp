@@ -59,7 +59,7 @@ double seconds_of(LatticeSolver& solver, int steps, std::vector<Residual>& r) {
 
 ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& lattice, Precision precision,
                                  int systems, int steps, double warmup_seconds, double target_seconds,
-                                 int time_block, StateLayout layout, bool symmetric_collision) {
+                                 int time_block, StateLayout layout, bool symmetric_collision, const RunContext& ctx) {
   SolverOptions so;
   so.symmetric_collision = symmetric_collision;
   so.precision = precision;
@@ -72,6 +72,7 @@ ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& 
   std::vector<Residual> r;
   double step_seconds = 0, warm = 0;
   for (int n = 2; n <= (1 << 20); n *= 2) {
+    ctx.check_cancelled();
     const double dt = seconds_of(*solver, n, r);
     step_seconds = dt / n;
     warm += dt;
@@ -80,7 +81,12 @@ ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& 
   ThroughputRun run;
   run.steps = steps > 0 ? steps
                         : std::max(4, std::min(1 << 22, static_cast<int>(target_seconds / std::max(step_seconds, 1e-9))));
-  run.seconds = seconds_of(*solver, run.steps, r);
+  // Spans of about half a second (a measure each: negligible against that), polling ctx between.
+  const int span = std::max(1, static_cast<int>(0.5 / std::max(step_seconds, 1e-9)));
+  for (int done = 0; done < run.steps; done += span) {
+    ctx.check_cancelled();
+    run.seconds += seconds_of(*solver, std::min(span, run.steps - done), r);
+  }
   run.updates_per_second =
       static_cast<double>(lattice.dims.interior_count()) * run.steps * systems / std::max(run.seconds, 1e-9);
   run.steps_per_pass = solver->steps_per_pass();

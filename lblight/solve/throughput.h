@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "lblight/backend/backend.h"
+#include "lblight/core/run_context.h"
 
 namespace lblight {
 
@@ -30,12 +31,13 @@ struct ThroughputRun {
 // Times `steps` steps of `systems` systems (suns along lattice directions 1, 2, ...) on `lattice`
 // after a warm-up of at least `warmup_seconds` (doubling the steps from 2; 0: one 2-step
 // warm-up). steps 0: about `target_seconds` of work. measure() closes each timed span, so an
-// asynchronous backend's queued steps count.
+// asynchronous backend's queued steps count. The timed steps run in spans of about half a second,
+// between which `ctx` is polled, so that a long --steps stops on Ctrl-C.
 // time_block, layout, symmetric_collision: those of SolverOptions (time_block 0: the backend's choice).
 ThroughputRun measure_throughput(const Backend& backend, const LatticeGeometry& lattice, Precision precision,
                                  int systems, int steps, double warmup_seconds = 0.3, double target_seconds = 2.0,
                                  int time_block = 0, StateLayout layout = StateLayout::TwoLevels,
-                                 bool symmetric_collision = true);
+                                 bool symmetric_collision = true, const RunContext& ctx = {});
 
 // The quick figure behind run-time estimates: one system on an edge^3 uniform lattice (edge 0: 48
 // on the CPU, 128 on a GPU, where a smaller lattice would sit in the L2 cache and time launches
