@@ -204,6 +204,21 @@ std::vector<ForestInstance> forest_instances(const ForestSpec& f, const std::str
   const ForestGenerator& g = *f.generator;
   double total_weight = 0;
   for (const auto& m : g.models) total_weight += m.second;
+  // Up front, not after millions of tries: random placement (dart throwing) jams when discs of
+  // diameter min_spacing cover about 0.547 of the area (random sequential adsorption's limit),
+  // well below a hexagonal packing's 0.907. The area grows by one spacing for the discs that
+  // overhang its edges.
+  if (g.min_spacing > 0) {
+    const double pi = 3.14159265358979323846, s = g.min_spacing;
+    const double area = (g.area[2] - g.area[0] + s) * (g.area[3] - g.area[1] + s);
+    const double fits = 0.547 * area / (pi * s * s / 4);
+    if (static_cast<double>(g.count) > fits)
+      throw_invalid("the forest generator cannot place " + std::to_string(g.count) + " instances " +
+                        JsonReader::describe(g.min_spacing) + " apart in its area: random placement fits about " +
+                        std::to_string(static_cast<long long>(fits)) +
+                        " there; lower count/density or min_spacing, or enlarge the area",
+                    {file, g.json_path, {}});
+  }
   Random rng{g.seed};
   // Dart throwing with a hash of cells min_spacing wide: each candidate is checked against the
   // instances in its and the neighbouring cells only.
