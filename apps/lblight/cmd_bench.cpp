@@ -70,6 +70,21 @@ int run_bench(const BenchArgs& a) {
     if (!backend->supports(parse_precision(pname)))
       throw_invalid("--precision " + pname + ": the " + backend->name() + " backend does not store it; allowed here: " +
                     supported_precisions(*backend));
+  // Every size refused up front when its lattice and systems do not fit (not a bare "out of
+  // memory" minutes in): the state of --systems systems, two levels, plus the lattice itself.
+  const double memory = static_cast<double>(backend->available_bytes());
+  for (const std::string& pname : a.precisions)
+    for (int size : a.sizes) {
+      const Dims d{size, size, size};
+      const double need = static_cast<double>(backend->bytes_per_lattice(d)) +
+                          a.systems * static_cast<double>(backend->bytes_per_system(d, parse_precision(pname)));
+      if (memory > 0 && need > 0.9 * memory)
+        throw Error(ErrorCategory::Unavailable,
+                    "--size " + std::to_string(size) + " in " + pname + " with --systems " + std::to_string(a.systems) +
+                        " needs " + format_bytes(need) + " on " + backend->name() + ", which has " +
+                        format_bytes(memory) + " to spare; allowed: a smaller --size or fewer --systems",
+                    {"--size", {}, {}});
+    }
   const std::size_t probe = a.bandwidth_mib > 0 ? static_cast<std::size_t>(a.bandwidth_mib * 1024 * 1024)
                                                  : (backend->name() == "cpu" ? (512u << 20) : (1024u << 20));
   spdlog::info("measuring copy bandwidth with {} buffers on {}", format_bytes(static_cast<double>(probe)),

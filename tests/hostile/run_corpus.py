@@ -950,6 +950,9 @@ case("hang-sigint-during-report", "hang", ["report", "scene.json", "-o", "rep"],
 
 # --------------------------------------------------------------------------------------- memory
 
+for size, prec in [(2048, "float32"), (1024, "float64")]:
+    case("memory-bench-size-%d-%s" % (size, prec), "memory", ["bench", "--size", str(size), "--precision", prec], None,
+         1, ["--size %d" % size, "allowed"], max_seconds=5, desc="a bench size that cannot fit: refused up front")
 case("memory-validate-dev-zero", "memory", ["validate", "--no-timing", "/dev/zero"], None, 2,
      ["/dev/zero", NOT_REGULAR], timeout=30, max_seconds=5)
 case("memory-bake-dev-zero", "memory", ["bake", "/dev/zero", "-o", "out"], None, 2, ["/dev/zero", NOT_REGULAR],
