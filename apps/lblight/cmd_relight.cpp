@@ -90,7 +90,16 @@ int run_relight_forest(const RelightArgs& a, const GlobalOptions& global) {
     rows.push_back({req.instance ? *req.instance : k, in.model, w, in.mean_factor, in.voxels});
   }
   rec["instances"] = rows;
-  write_file_atomically(rec_file, rec.dump(1) + "\n");
+  // The volume and its weights record are one output: without the record (a full disk, Ctrl-C)
+  // the volume is taken back, so neither is left alone.
+  try {
+    throw_if_interrupted();
+    write_file_atomically(rec_file, rec.dump(1) + "\n");
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(out, ec);
+    throw;
+  }
   std::cout << "relit " << r.instances << " instance(s) of " << a.input << " for a sun at elevation " << a.elevation
             << ", azimuth " << a.azimuth << (r.coarse ? " with coarse forest factors" : " (local light only)") << ": "
             << r.active_voxels << " active voxels of " << r.voxel_size << " world units in " << r.relight_seconds
