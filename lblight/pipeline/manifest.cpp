@@ -92,7 +92,9 @@ fs::path manifest_file(const fs::path& dir, const std::string& name, const std::
 }
 
 bool solved_with_delta_m(const nlohmann::json& m) {
-  if (!m.is_object() || m.value("lb_model", "") != "calibrated") return false;
+  // "calibrated", or "calibrated (no ...; with ...)" when switches differ from the defaults
+  // (LbModel::name()): first_collision on made the default scene's name the second kind.
+  if (!m.is_object() || m.value("lb_model", "").rfind("calibrated", 0) != 0) return false;
   const nlohmann::json switches = m.value("lb_calibration", nlohmann::json::object());
   return !switches.is_object() || switches.value("delta_m", true);
 }

@@ -19,6 +19,7 @@
 #include "lblight/io/output_dir.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/io/vdb_stream_writer.h"
+#include "lblight/pipeline/manifest.h"
 #include "tests/support/expect_error.h"
 #include "tests/support/test_support.h"
 
@@ -308,4 +309,17 @@ TEST_CASE("write_file_atomically refuses a folder and a FIFO and replaces a syml
   write_file_atomically(tmp.path() / "link.json", std::string("new"));
   CHECK(std::filesystem::is_symlink(tmp.path() / "link.json"));
   CHECK(read_text(tmp / "target.json") == "new");
+}
+
+TEST_CASE("A manifest entry names delta-M scaled light for every calibrated model name, not the papers'", "[manifest]") {
+  // LbModel::name() is "calibrated" or, with switches off their defaults, "calibrated (...)": the
+  // default scene's first_collision made it the second, which a plain string compare missed and
+  // render then drew its cumulus 1.7x too bright.
+  const auto entry = [](const char* name, bool delta_m) {
+    return nlohmann::json{{"lb_model", name}, {"lb_calibration", {{"delta_m", delta_m}}}};
+  };
+  CHECK(lblight::solved_with_delta_m(entry("calibrated", true)));
+  CHECK(lblight::solved_with_delta_m(entry("calibrated (with first_collision)", true)));
+  CHECK_FALSE(lblight::solved_with_delta_m(entry("calibrated (no delta_m)", false)));
+  CHECK_FALSE(lblight::solved_with_delta_m(entry("paper", true)));
 }
