@@ -94,6 +94,8 @@ int run_bench(const BenchArgs& a) {
   nlohmann::json out;
   out["backend"] = {{"name", backend->name()}, {"description", backend->description()}};
   out["runs"] = nlohmann::json::array();
+  RunContext ctx;
+  ctx.cancel = &g_interrupted;  // a long --steps stops on Ctrl-C
   const std::size_t cache = backend->cache_bytes();
   std::vector<int> blocks = a.time_blocks;
   if (blocks.empty()) blocks = backend->occupies_host_cores() ? std::vector<int>{1, 0} : std::vector<int>{0};
@@ -107,8 +109,6 @@ int run_bench(const BenchArgs& a) {
       if (a.in_place && backend->bytes_per_system_in_place(lat.dims, precision) > 0) variants.push_back({1, StateLayout::InPlace});
       for (const auto& [block, layout] : variants)
         for (const std::string& collision : a.collisions) {
-          RunContext ctx;
-          ctx.cancel = &g_interrupted;  // a long --steps stops on Ctrl-C
           const ThroughputRun run = measure_throughput(*backend, lat, precision, a.systems, a.steps, 0.3, 2.0, block,
                                                        layout, collision == "cubic", ctx);
           // What one update moves to and from memory: the whole update's bytes once per pass

@@ -153,11 +153,11 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
   lmeta["lblight_meaning"] = "light of a static bake of this sun: intensity x (the sun's three base solutions by "
                              "their weights) + ambient x B00 + sky x (downward directions + half the level ones); 1 = the open-air value "
                              "of a unit sun (ambient a: 18 a, sky S: 9 S)";
+  // The bake density's self-description (docs/output-format.md) travels with the relit file, all
+  // of it: whatever bake_output.cpp's material_metadata writes, on the same lattice box.
   nlohmann::json dmeta = box;
-  // The bake's self-description travels with the relit file (docs/output-format.md).
-  for (const char* key : {"lblight_voxel_size", "lblight_material_medium", "lblight_material_wood",
-                          "lblight_density_meaning", "lblight_lb_model"})
-    if (r.density_metadata.contains(key)) dmeta[key] = r.density_metadata[key];
+  for (const auto& [key, value] : r.density_metadata.items())
+    if (key.rfind("lblight_", 0) == 0 && !box.contains(key)) dmeta[key] = value;
   const nlohmann::json meta = {{"lblight_version", kVersion},
                                {"lblight_command", global.command_line},
                                {"lblight_source", vdb.string()},

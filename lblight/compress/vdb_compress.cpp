@@ -60,30 +60,33 @@ LbhFileContents compress_vdb(const std::filesystem::path& file, const LbhSetting
     LbhSolutionIn in;
     in.name = names[i];
     in.rgb = &g.values;
+    // A base-solution grid written by another tool: Bnn is index nn (-1: not such a name).
+    const std::string& n = names[i];
+    const int named = n.size() == 3 && n[0] == 'B' && std::isdigit(static_cast<unsigned char>(n[1])) &&
+                              std::isdigit(static_cast<unsigned char>(n[2]))
+                          ? std::stoi(n.substr(1))
+                          : -1;
     if (g.metadata.contains("lblight_solution") && g.metadata["lblight_solution"].is_number_integer())
       in.index = g.metadata["lblight_solution"].get<int>();
-    else if (names[i].size() == 3 && names[i][0] == 'B' && std::isdigit(static_cast<unsigned char>(names[i][1])) &&
-             std::isdigit(static_cast<unsigned char>(names[i][2])))
-      in.index = std::stoi(names[i].substr(1));  // a base-solution grid written by another tool: Bnn is index nn
+    else
+      in.index = named;
     if (in.index < -1 || in.index > 18) in.index = -1;
-    if (g.metadata.contains("lblight_direction") && g.metadata["lblight_direction"].is_array() &&
-        g.metadata["lblight_direction"].size() == 3)
-      for (int a = 0; a < 3; ++a) in.direction[a] = std::clamp(g.metadata["lblight_direction"][a].get<int>(), -1, 1);
-    else if (in.index >= 0)
-      in.direction = {lbh::lattice_cx(in.index), lbh::lattice_cy(in.index), lbh::lattice_cz(in.index)};
     // A grid whose tags disagree (its name, its solution index, its direction) would decompress
     // and relight as another solution: refuse it here, as the reader refuses such a file.
     const int m = in.index < 0 ? 0 : in.index;
     const std::array<int, 3> want{lbh::lattice_cx(m), lbh::lattice_cy(m), lbh::lattice_cz(m)};
+    in.direction = want;
+    if (g.metadata.contains("lblight_direction") && g.metadata["lblight_direction"].is_array() &&
+        g.metadata["lblight_direction"].size() == 3)
+      for (int a = 0; a < 3; ++a) in.direction[a] = std::clamp(g.metadata["lblight_direction"][a].get<int>(), -1, 1);
     if (in.direction != want)
-      throw_invalid("grid '" + names[i] + "': lblight_direction (" + std::to_string(in.direction[0]) + ", " +
+      throw_invalid("grid '" + n + "': lblight_direction (" + std::to_string(in.direction[0]) + ", " +
                         std::to_string(in.direction[1]) + ", " + std::to_string(in.direction[2]) +
                         ") is not the direction of solution " + std::to_string(in.index) + "; allowed: (" +
                         std::to_string(want[0]) + ", " + std::to_string(want[1]) + ", " + std::to_string(want[2]) + ")",
                     {file.string(), {}, {}});
-    if (in.index >= 0 && names[i].size() == 3 && names[i][0] == 'B' && std::isdigit(static_cast<unsigned char>(names[i][1])) &&
-        std::isdigit(static_cast<unsigned char>(names[i][2])) && std::stoi(names[i].substr(1)) != in.index)
-      throw_invalid("grid '" + names[i] + "' is tagged as base solution " + std::to_string(in.index) +
+    if (in.index >= 0 && named >= 0 && named != in.index)
+      throw_invalid("grid '" + n + "' is tagged as base solution " + std::to_string(in.index) +
                         " (lblight_solution); a grid named Bnn must hold solution nn",
                     {file.string(), {}, {}});
     try {

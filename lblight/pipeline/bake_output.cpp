@@ -75,6 +75,7 @@ nlohmann::json material_metadata(const ModelPlan& mp, bool has_wood) {
       "lblight_voxel_size, scattering d sigma_s / lblight_voxel_size (sigma per voxel edge and colour channel "
       "in lblight_material_medium, or lblight_material_wood where brown > 0.5)";
   j["lblight_lb_model"] = mp.model.name();
+  j["lblight_delta_m"] = mp.model.calibrated && mp.model.delta_m;  // as the manifest's solved_with_delta_m
   return j;
 }
 

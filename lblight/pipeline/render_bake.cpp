@@ -61,16 +61,6 @@ bool has_grid(const nlohmann::json& inspected, const std::string& name) {
   return false;
 }
 
-// Whether an LbModel::name() ("paper", "calibrated", "calibrated (no delta_m, ...; with ...)")
-// names a model that solved with the delta-M scaling.
-bool lb_model_name_has_delta_m(const std::string& name) {
-  if (name.rfind("calibrated", 0) != 0) return false;
-  const std::size_t no = name.find("(no ");
-  if (no == std::string::npos) return true;
-  const std::size_t end = name.find_first_of(";)", no);
-  return name.substr(no, end - no).find("delta_m") == std::string::npos;
-}
-
 }  // namespace
 
 RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& sun, const RunContext& ctx) {
@@ -199,8 +189,8 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
       v.materials[1] = meta.contains("lblight_material_wood") && meta["lblight_material_wood"].is_string()
                            ? material("lblight_material_wood")
                            : v.materials[0];
-      if (!relit && meta.contains("lblight_lb_model") && meta["lblight_lb_model"].is_string())
-        v.delta_m = lb_model_name_has_delta_m(meta["lblight_lb_model"].get<std::string>());
+      if (!relit && meta.contains("lblight_delta_m") && meta["lblight_delta_m"].is_boolean())
+        v.delta_m = meta["lblight_delta_m"].get<bool>();
       known = true;
     }
   }
