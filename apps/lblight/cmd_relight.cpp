@@ -18,6 +18,7 @@
 #include "lblight/pipeline/manifest.h"
 #include "lblight/pipeline/relight.h"
 #include "lblight/pipeline/relight_forest.h"
+#include "lblight/scene/material.h"
 
 namespace fs = std::filesystem;
 
@@ -171,6 +172,14 @@ int run_relight(const RelightArgs& a, const GlobalOptions& global) {
   std::vector<DenseGridOut> grids = {{"light", nullptr, &r.light, false, lmeta},
                                      {"density", &r.density, nullptr, true, dmeta}};
   if (!r.wood.empty()) grids.push_back({"brown", &r.wood, nullptr, false, box});  // where the wood material applies
+  if (!r.flux[0][0].empty())  // the relit flux (a bake with moments), for phase-aware rendering
+    for (int c = 0; c < 3; ++c) {
+      nlohmann::json fmeta = box;
+      fmeta["lblight_moment"] = "flux";
+      fmeta["lblight_units"] = std::string("flux vector of the light's ") + kChannelNames[c] +
+                               " channel along the index axes, relit with the same weights";
+      grids.push_back({std::string("light_flux_") + "rgb"[c], nullptr, &r.flux[static_cast<std::size_t>(c)], false, fmeta});
+    }
   // Written under a temporary name and renamed: the output appears complete or not at all.
   write_file_atomically(out, [&](const fs::path& tmp) {
     write_vdb(tmp, r.frame, grids, meta);

@@ -35,7 +35,8 @@ namespace lblight::cli {
 namespace {
 
 struct RenderArgs {
-  std::string input, model, output = "render.exr", png, orbit = "three-quarter", size = "512x512", term = "all";
+  std::string input, model, output = "render.exr", png, orbit = "three-quarter", size = "512x512", term = "all",
+              scattering = "phase";
   std::string material, wood_material, grid;
   std::vector<double> camera, look_at, range;
   double opacity = 0.5;
@@ -229,6 +230,8 @@ int run_render(const RenderArgs& a, const GlobalOptions& global) {
             : a.term == "lb"       ? RenderTerm::Lb
                                    : RenderTerm::All;
   src.light = st.term != RenderTerm::Direct && !a.reference;
+  // --term lb in-scatters the whole light isotropically (the add-on's old formula): no flux needed
+  src.scattering = a.scattering == "isotropic" || st.term == RenderTerm::Lb ? Scattering::Isotropic : Scattering::PhaseP1;
   if (a.reference && (a.sheet || !a.grid.empty())) throw_invalid("--reference draws the lit volume: leave out --sheet and --grid");
   src.grid = a.grid;
   if (!a.grid.empty() && a.sheet) throw_invalid("--grid and --sheet draw different pictures: choose one");
@@ -344,6 +347,12 @@ Command add_render_command(CLI::App& app, const GlobalOptions& global) {
                   "direct (single-scattered sun), indirect (LB multiple scattering), all (both), or lb (the whole LB "
                   "light scattered isotropically: what the Blender add-on renders)")
       ->check(CLI::IsMember({"direct", "indirect", "all", "lb"}))
+      ->capture_default_str();
+  cmd->add_option("--scattering", args->scattering,
+                  "How the LB light's scattered part is in-scattered toward the eye: phase (with the material's "
+                  "phase function, from the bake's flux grids, docs/rendering.md sec. 1) or isotropic (bakes "
+                  "without moments)")
+      ->check(CLI::IsMember({"phase", "isotropic"}))
       ->capture_default_str();
   cmd->add_option("--grid", args->grid,
                   "Show this grid of the file (density, B06, light, ...; a vector grid's channel mean) in false "

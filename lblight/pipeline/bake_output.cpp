@@ -33,6 +33,32 @@ void write_raw_totals(const std::filesystem::path& file, const std::array<std::v
   if (!out) throw_io("cannot write the totals (disk full?)", {file.string(), {}, {}});
 }
 
+void write_raw_flux(const std::filesystem::path& file, const std::array<FluxField, 3>& flux) {
+  std::ofstream out(file, std::ios::binary);
+  for (const FluxField& c : flux)
+    for (const std::vector<float>& axis : c)
+      out.write(reinterpret_cast<const char*>(axis.data()), static_cast<std::streamsize>(axis.size() * sizeof(float)));
+  out.flush();
+  if (!out) throw_io("cannot write the flux (disk full?)", {file.string(), {}, {}});
+}
+
+std::array<FluxField, 3> read_raw_flux(const std::filesystem::path& file, std::size_t nodes) {
+  const std::uint64_t bytes = check_regular_file(file, "unit flux file");
+  if (bytes != 9 * nodes * sizeof(float))
+    throw_invalid("holds " + std::to_string(bytes) + " bytes, not the " + std::to_string(9 * nodes * sizeof(float)) +
+                      " of 3 channels x 3 axes x " + std::to_string(nodes) + " lattice nodes",
+                  {file.string(), {}, {}});
+  std::ifstream in(file, std::ios::binary);
+  std::array<FluxField, 3> flux;
+  for (FluxField& c : flux)
+    for (std::vector<float>& axis : c) {
+      axis.resize(nodes);
+      in.read(reinterpret_cast<char*>(axis.data()), static_cast<std::streamsize>(nodes * sizeof(float)));
+    }
+  if (!in) throw_io("cannot read", {file.string(), {}, {}});
+  return flux;
+}
+
 std::array<std::vector<float>, 3> read_raw_totals(const std::filesystem::path& file, std::size_t nodes) {
   const std::uint64_t bytes = check_regular_file(file, "unit totals file");
   if (bytes != 3 * nodes * sizeof(float))
@@ -181,8 +207,9 @@ double since(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 // Opens <model>.vdb and queues its density (and brown) grids; the solutions follow as they come.
-void BakeOutput::start_model(const ModelPlan& mp) {
+void BakeOutput::start_model(const ModelPlan& mp, bool flux) {
   model_ = &mp;
+  flux_grids_ = flux;
   done_.clear();
   encoded_.assign(solutions_expected(mp), LbhEncoded{});
   half_error_.assign(solutions_expected(mp), 0.0);
@@ -205,7 +232,7 @@ void BakeOutput::start_model(const ModelPlan& mp) {
   const std::size_t extra_grids = extras ? extras->grids.size() : 0;
   vdb_ = std::make_unique<VdbStreamWriter>(dir_.path(mp.spec->name + ".vdb"), dense_frame(mp),
                                            static_cast<int>(1 + has_wood + extra_grids +
-                                                            solutions_expected(mp) * grids_per_solution()),
+                                                            solutions_expected(mp) * (grids_per_solution() + (flux ? 3 : 0))),
                                            extras ? merged(file_meta, extras->file_metadata) : file_meta,
                                            parallel_grids);
   worker_.post([this, &mp, has_wood] {
@@ -241,7 +268,9 @@ void BakeOutput::set_extras(const ModelPlan& mp, ModelExtras extras) {
 const ModelExtras* BakeOutput::extras_for(const ModelPlan& mp) const { return extras_model_ == &mp ? &extras_ : nullptr; }
 
 void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
-  if (model_ != &mp) start_model(mp);
+  // Whether the model's solutions come with their flux (BakeOptions::moments on a backend with
+  // state access) shows in its first one; the file announces its grids up front.
+  if (model_ != &mp) start_model(mp, !result.flux[0][0].empty());
   if (done_.size() >= encoded_.size())
     throw Error(ErrorCategory::Internal, "bake output: more solutions than planned for model '" + mp.spec->name + "'");
   // The worker owns the totals from here; the manifest row keeps everything else.
@@ -252,6 +281,15 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
       throw Error(ErrorCategory::Internal, "bake output: a reference solution without its standard error");
     std_error = std::make_shared<std::array<std::vector<float>, 3>>(std::move(result.std_error));
   }
+  // A solution without flux in a model with flux grids: a B00 solved from a source in a bake
+  // without all 18 directional solutions (bake.h, BakeOptions::moments); its flux is written as 0,
+  // the ambient light taken as isotropic, and its grids say so.
+  std::shared_ptr<std::array<FluxField, 3>> flux;
+  const bool flux_missing = flux_grids_ && result.flux[0][0].empty();
+  if (flux_missing)
+    for (FluxField& f : result.flux)
+      for (auto& axis : f) axis.assign(mp.lattice.dims.count(), 0.0f);
+  if (flux_grids_) flux = std::make_shared<std::array<FluxField, 3>>(std::move(result.flux));
   done_.push_back(result);
   const SolutionResult& r = done_.back();
   const std::size_t slot = done_.size() - 1;
@@ -268,22 +306,30 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
   g.metadata["lblight_active"] = keep_.empty() ? "the whole lattice box, boundary source values included"
                                                : "occupied nodes and their 26 neighbours (0 elsewhere)";
   LbhSolutionIn lbh_in{r.plan.grid_name, r.plan.index, r.plan.direction, nullptr};
-  std::string raw_file;  // a unit's share of a model: its totals as solved, for the merge
+  std::string raw_file, raw_flux_file;  // a unit's share of a model: its totals (and flux) as solved, for the merge
   if (unit_solutions_) {
     raw_file = mp.spec->name + "." + r.plan.grid_name + ".totals";
     raw_files_[r.plan.grid_name] = raw_file;
+    if (flux && !flux_missing) {
+      raw_flux_file = mp.spec->name + "." + r.plan.grid_name + ".flux";
+      raw_flux_files_[r.plan.grid_name] = raw_flux_file;
+    }
   }
-  worker_.post([this, &mp, totals, std_error, g = std::move(g), lbh_in, slot, raw_file]() mutable {
+  worker_.post([this, &mp, totals, std_error, flux, flux_missing, g = std::move(g), lbh_in, slot, raw_file, raw_flux_file]() mutable {
     const auto t0 = std::chrono::steady_clock::now();
     if (!raw_file.empty()) write_raw_totals(dir_.path(raw_file), *totals);
+    if (!raw_flux_file.empty()) write_raw_flux(dir_.path(raw_flux_file), *flux);
     // The ground layer's own totals mix what arrives from above with the boundary below it; a
     // renderer interpolating down to the ground should see the light just above it instead.
+    std::vector<std::array<std::vector<float>, 3>*> grids{totals.get(), std_error.get()};
+    if (flux)
+      for (FluxField& f : *flux) grids.push_back(&f);
     if (mp.ground.on)
-      for (auto* grid : {totals.get(), std_error.get()})
+      for (auto* grid : grids)
         if (grid)
           for (auto& c : *grid) copy_up_to_ground(mp.lattice.dims, c);
     if (!keep_.empty())
-      for (auto* grid : {totals.get(), std_error.get()})
+      for (auto* grid : grids)
         if (grid)
           for (auto& c : *grid)
             for (std::size_t i = 0; i < c.size(); ++i)
@@ -300,10 +346,23 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
       if (g.half) half_error_[slot] = half_rounding_error(*totals);
       vdb_->add(g);
       if (std_error) {
-        g.name += "_se";
-        g.rgb = std_error.get();
-        vdb_->add(g);
+        DenseGridOut se = g;
+        se.name += "_se";
+        se.rgb = std_error.get();
+        vdb_->add(se);
       }
+      if (flux)  // docs/output-format.md: <grid>_flux_r/_g/_b, (x, y, z) in lattice axes
+        for (int c = 0; c < 3; ++c) {
+          DenseGridOut j = g;
+          j.name += std::string("_flux_") + "rgb"[c];
+          j.rgb = &(*flux)[static_cast<std::size_t>(c)];
+          j.metadata["lblight_units"] = std::string("flux vector sum_m f_m n_m of the ") + kChannelNames[c] +
+                                        " channel along the index axes, in the light's units (a beam of light L "
+                                        "has flux L times its direction of travel)";
+          j.metadata["lblight_moment"] =
+              flux_missing ? "flux not available for this solution: written as 0 (its light taken as isotropic)" : "flux";
+          vdb_->add(j);
+        }
     }
     output_seconds_ += since(t0);
   });
@@ -312,7 +371,7 @@ void BakeOutput::add(const ModelPlan& mp, SolutionResult& result) {
 void BakeOutput::set_peak_bytes(const ModelPlan&, std::size_t bytes) { peak_bytes_ = std::max(peak_bytes_, bytes); }
 
 void BakeOutput::finish_model(const ModelPlan& mp) {
-  if (model_ != &mp) start_model(mp);  // a model without solutions still gets its density
+  if (model_ != &mp) start_model(mp, false);  // a model without solutions still gets its density
   const auto t_wait = std::chrono::steady_clock::now();
   worker_.wait();
   const double waited = since(t_wait);
@@ -476,6 +535,7 @@ nlohmann::json BakeOutput::commit(double total_seconds) {
   if (!info_.unit.is_null()) {
     m["unit"] = info_.unit;
     if (unit_solutions_) m["unit"]["totals"] = raw_files_;
+    if (!raw_flux_files_.empty()) m["unit"]["flux"] = raw_flux_files_;
     m["unit"]["files"] = file_checksums(dir_.staging(), m);
   }
   write_file_atomically(dir_.path("manifest.json"), m.dump(2) + "\n");

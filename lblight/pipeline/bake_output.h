@@ -74,7 +74,7 @@ class BakeOutput {
   const nlohmann::json& models() const { return models_; }
 
  private:
-  void start_model(const ModelPlan& model);
+  void start_model(const ModelPlan& model, bool flux);  // flux: each solution has its 3 flux grids
   std::size_t solutions_expected(const ModelPlan& model) const;
   const ModelExtras* extras_for(const ModelPlan& model) const;
   int grids_per_solution() const { return info_.reference.is_null() ? 1 : 2; }
@@ -84,6 +84,8 @@ class BakeOutput {
   BakeRunInfo info_;
   // Per model, while it is being baked. Declared before worker_: the worker stops first.
   const ModelPlan* model_ = nullptr;
+  bool flux_grids_ = false;
+  std::map<std::string, std::string> raw_flux_files_;  // a unit's <grid> -> <model>.<grid>.flux  // the model's .vdb holds <grid>_flux_r/_g/_b (SolutionResult::flux)
   const ModelPlan* extras_model_ = nullptr;  // the model extras_ belong to
   ModelExtras extras_;
   std::vector<SolutionResult> done_;   // manifest rows (totals handed to the worker)
@@ -105,6 +107,9 @@ class BakeOutput {
 // naming the file when it cannot be written or read, or its size is not 3 x `nodes` floats.
 void write_raw_totals(const std::filesystem::path& file, const std::array<std::vector<float>, 3>& totals);
 std::array<std::vector<float>, 3> read_raw_totals(const std::filesystem::path& file, std::size_t nodes);
+// A unit's flux as solved (SolutionResult::flux): <model>.<grid>.flux, 3 channels x 3 axes x nodes floats.
+void write_raw_flux(const std::filesystem::path& file, const std::array<FluxField, 3>& flux);
+std::array<FluxField, 3> read_raw_flux(const std::filesystem::path& file, std::size_t nodes);
 
 // Manifest pieces shared with `validate --json` and `inspect`.
 nlohmann::json material_json(const Material& m);

@@ -92,6 +92,7 @@ GasFrameLit GasFrameLighting::light(int frame, ModelGrid smoke, ModelExtras extr
   FrameRecord record(writer);
   BakeOptions options;
   options.warm = warm_ ? &states_ : nullptr;
+  options.moments = sequence_.scene->output.moments;
   bake_model(mp, backend_, options, record, ctx);
   out.finish_model(mp);
   record.lit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

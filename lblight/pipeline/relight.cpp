@@ -99,14 +99,48 @@ BaseSolutions::BaseSolutions(const std::filesystem::path& vdb, const std::option
   density_metadata_ = density.metadata;
   check_manifest_lattice(vdb, frame_);
   if (names.count("brown")) wood_ = read_vdb_grid_dense(vdb, "brown", ctx).values[0];
+  // The flux grids (docs/output-format.md) when the bake wrote them for every solution read.
+  has_flux_ = !solutions.empty();
+  for (int j : solutions)
+    for (const char* c : {"_flux_r", "_flux_g", "_flux_b"}) has_flux_ = has_flux_ && names.count(base_grid_name(j) + c);
   for (int j : solutions) {
     DenseGridIn b = read_vdb_grid_dense(vdb, base_grid_name(j), ctx);
     check_base_solution_grid(b, j, frame_, vdb);
     auto& g = grids_[j];
     for (int c = 0; c < 3; ++c) g[c] = b.values[c].empty() ? b.values[0] : std::move(b.values[c]);
     ctx.check_cancelled();
+    if (!has_flux_) continue;
+    for (int c = 0; c < 3; ++c) {
+      DenseGridIn f = read_vdb_grid_dense(vdb, base_grid_name(j) + "_flux_" + "rgb"[c], ctx);
+      check_base_solution_grid(f, j, frame_, vdb);
+      if (f.values[1].empty()) throw_invalid("grid " + f.name + " is not a vector grid", {vdb.string(), f.name, {}});
+      for (int a = 0; a < 3; ++a) flux_[j][c][a] = std::move(f.values[a]);
+      ctx.check_cancelled();
+    }
   }
 }
+
+namespace {
+
+// out[k][i] = sum_w weight x source_w[k][i] for the K arrays of each source, in double.
+template <std::size_t K>
+void combine_arrays(const std::vector<std::pair<int, double>>& weights,
+                    const std::vector<const std::array<std::vector<float>, K>*>& src, std::array<std::vector<float>, K>& out,
+                    std::size_t count, const std::vector<std::size_t>* nodes) {
+  auto one = [&](std::size_t i) {
+    for (std::size_t c = 0; c < K; ++c) {
+      double s = 0;
+      for (std::size_t k = 0; k < src.size(); ++k) s += weights[k].second * (*src[k])[c][i];
+      out[c][i] = static_cast<float>(s);
+    }
+  };
+  if (nodes)
+    for (std::size_t i : *nodes) one(i);
+  else
+    for (std::size_t i = 0; i < count; ++i) one(i);
+}
+
+}  // namespace
 
 void BaseSolutions::combine(const std::vector<std::pair<int, double>>& weights, std::array<std::vector<float>, 3>& out,
                             const std::vector<std::size_t>* nodes) const {
@@ -117,17 +151,22 @@ void BaseSolutions::combine(const std::vector<std::pair<int, double>>& weights, 
       throw_invalid("relighting needs base solution " + base_grid_name(solution) + ", which was not read", {file_.string(), {}, {}});
     src.push_back(&it->second);
   }
-  auto one = [&](std::size_t i) {
-    for (int c = 0; c < 3; ++c) {
-      double s = 0;
-      for (std::size_t k = 0; k < src.size(); ++k) s += weights[k].second * (*src[k])[c][i];
-      out[c][i] = static_cast<float>(s);
+  combine_arrays(weights, src, out, frame_.dims.count(), nodes);
+}
+
+void BaseSolutions::combine_flux(const std::vector<std::pair<int, double>>& weights, std::array<FluxField, 3>& out,
+                                 const std::vector<std::size_t>* nodes) const {
+  for (int c = 0; c < 3; ++c) {
+    std::vector<const FluxField*> src;
+    for (const auto& [solution, weight] : weights) {
+      const auto it = flux_.find(solution);
+      if (it == flux_.end())
+        throw_invalid("relighting needs the flux of base solution " + base_grid_name(solution) + ", which was not read",
+                      {file_.string(), {}, {}});
+      src.push_back(&it->second[static_cast<std::size_t>(c)]);
     }
-  };
-  if (nodes)
-    for (std::size_t i : *nodes) one(i);
-  else
-    for (std::size_t i = 0; i < frame_.dims.count(); ++i) one(i);
+    combine_arrays(weights, src, out[static_cast<std::size_t>(c)], frame_.dims.count(), nodes);
+  }
 }
 
 RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest& req, const RunContext& ctx) {
@@ -151,6 +190,14 @@ RelitModel relight_model(const std::filesystem::path& vdb, const RelightRequest&
   for (std::size_t i = 0; i < n; ++i)
     if (near[i])
       for (int c = 0; c < 3; ++c) out.light[c][i] = sum[c][i];
+  if (base.has_flux()) {
+    for (FluxField& f : out.flux)
+      for (auto& axis : f) axis.assign(n, 0.0f);
+    std::vector<std::size_t> nodes;
+    for (std::size_t i = 0; i < n; ++i)
+      if (near[i]) nodes.push_back(i);
+    base.combine_flux(out.weights, out.flux, &nodes);
+  }
   return out;
 }
 

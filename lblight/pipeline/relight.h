@@ -17,6 +17,7 @@
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/dense_grid.h"
 #include "lblight/lattice/sun.h"
+#include "lblight/solve/flux.h"
 
 namespace lblight {
 
@@ -66,6 +67,11 @@ class BaseSolutions {
   // null); out[c] must hold frame().dims.count() values.
   void combine(const std::vector<std::pair<int, double>>& weights, std::array<std::vector<float>, 3>& out,
                const std::vector<std::size_t>* nodes = nullptr) const;
+  // Whether every solution read came with its flux grids (<Bnn>_flux_r/_g/_b; a bake with
+  // output.moments), and their sum with the same weights (per channel, per axis).
+  bool has_flux() const { return has_flux_; }
+  void combine_flux(const std::vector<std::pair<int, double>>& weights, std::array<FluxField, 3>& out,
+                    const std::vector<std::size_t>* nodes = nullptr) const;
 
  private:
   std::filesystem::path file_;
@@ -73,6 +79,8 @@ class BaseSolutions {
   std::vector<float> density_, wood_;
   nlohmann::json density_metadata_;
   std::map<int, std::array<std::vector<float>, 3>> grids_;
+  std::map<int, std::array<FluxField, 3>> flux_;
+  bool has_flux_ = false;
 };
 
 struct RelitModel {
@@ -82,6 +90,7 @@ struct RelitModel {
   std::vector<float> wood;                     // 1 on wood nodes; empty when the model has none
   nlohmann::json density_metadata;            // the bake's density metadata: materials, voxel size
   std::vector<std::pair<int, double>> weights; // (base solution, weight) used
+  std::array<FluxField, 3> flux;               // per channel and axis; empty when the bake has no moments
 };
 
 // One bake .vdb relit. Error(InvalidInput) naming the file and the grid when the bake left out a

@@ -137,8 +137,15 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
   if (relit || !src.light) {
     const DenseGridIn light = read_vdb_grid_dense(vdb, relit ? "light" : "density", ctx);
     v.frame = light.frame;
-    if (relit && src.light)
+    if (relit && src.light) {
       for (int c = 0; c < 3; ++c) v.light[c] = onto(v.frame, light, c);
+      if (src.scattering == Scattering::PhaseP1 && has_grid(inspected, "light_flux_r"))
+        for (int c = 0; c < 3; ++c) {
+          const DenseGridIn f = read_vdb_grid_dense(vdb, std::string("light_flux_") + "rgb"[c], ctx);
+          if (f.values[1].empty()) throw_invalid("grid " + f.name + " is not a vector grid", {vdb.string(), f.name, {}});
+          for (int a = 0; a < 3; ++a) v.flux[c][a] = onto(v.frame, f, a);
+        }
+    }
     v.density = onto(v.frame, read_vdb_grid_dense(vdb, "density", ctx), 0);
     if (has_grid(inspected, "brown")) {
       const std::vector<float> brown = onto(v.frame, read_vdb_grid_dense(vdb, "brown", ctx), 0);
@@ -150,6 +157,7 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
     v.frame = r.frame;
     v.density = r.density;
     v.light = r.light;
+    if (src.scattering == Scattering::PhaseP1) v.flux = r.flux;
     if (has_grid(inspected, "brown")) {
       const DenseGridIn brown = read_vdb_grid_dense(vdb, "brown", ctx);
       v.material.resize(brown.values[0].size());
@@ -197,6 +205,12 @@ RenderVolume load_render_volume(const RenderSource& src, const RelightRequest& s
   if (!known)
     throw_invalid("the materials of this volume are not known: name them with --material (and --wood-material), "
                   "or render the bake folder",
+                  {vdb.string(), {}, {}});
+  // Moments: never a silently isotropic picture from a bake without them.
+  if (src.light && src.scattering == Scattering::PhaseP1 && !v.light[0].empty() && v.flux[0][0].empty())
+    throw_invalid(std::string("this volume has no flux grids (") + (relit ? "light_flux_r/_g/_b" : "B.._flux_r/_g/_b") +
+                      "), which phase-aware rendering needs: re-bake with \"output\": {\"moments\": true} (the default)" + (relit ? " and relight again" : "") +
+                      ", or render with --scattering isotropic (the scattered light in-scattered as if isotropic)",
                   {vdb.string(), {}, {}});
   volume_voxel_size(v.frame);  // refuses rotated or stretched voxels up front
   return v;

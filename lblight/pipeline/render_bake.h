@@ -14,11 +14,16 @@
 
 namespace lblight {
 
+// How the indirect term in-scatters the LB light: with the material's phase function from the
+// light's flux (the default; needs the bake's moments), or isotropically (bakes without moments).
+enum class Scattering { PhaseP1, Isotropic };
+
 struct RenderSource {
   std::filesystem::path input;   // bake folder, bake .vdb or relit .vdb
   std::string model;             // bake folder: which model (needed when it holds several)
   std::optional<std::string> material, wood_material;  // presets, for a relit .vdb (override the manifest's)
   bool light = true;             // load the LB light (false: direct term only)
+  Scattering scattering = Scattering::PhaseP1;  // PhaseP1: the flux too, refused when missing
   std::string grid;              // --grid: this grid into RenderVolume::field (its channels' mean),
                                  // no light and no materials needed
 };

@@ -41,6 +41,7 @@ nlohmann::json run_bake(const BakePlan& plan, const Backend& backend, const std:
   WriteEachSolution writer(output, observer);
   BakeOptions options;  // a unit of some of the model's solutions bakes only those
   if (unit.is_object() && unit.contains("solutions")) options.solutions = unit["solutions"].get<std::vector<int>>();
+  options.moments = plan.scene->output.moments;
   for (const ModelPlan& mp : plan.models) {
     bake_model(mp, backend, options, writer, ctx);
     output.finish_model(mp);

@@ -70,9 +70,11 @@ std::vector<std::pair<std::string, std::string>> named_files(const nlohmann::jso
   for (std::size_t i = 0; i < models.size(); ++i)
     for (const char* key : {"file", "lbh_file"})
       if (models[i].contains(key)) add(models[i][key], "/models/" + std::to_string(i) + "/" + key);
-  const nlohmann::json totals = manifest.value("unit", nlohmann::json::object()).value("totals", nlohmann::json());
-  if (totals.is_object())
-    for (const auto& [grid, f] : totals.items()) add(f, "/unit/totals/" + grid);
+  for (const char* key : {"totals", "flux"}) {  // a unit's raw totals and flux (bake_output.h)
+    const nlohmann::json raw = manifest.value("unit", nlohmann::json::object()).value(key, nlohmann::json());
+    if (raw.is_object())
+      for (const auto& [grid, f] : raw.items()) add(f, std::string("/unit/") + key + "/" + grid);
+  }
   return files;
 }
 
@@ -380,6 +382,8 @@ Part assemble(const std::vector<Part>& parts, const fs::path& dir, const MergeOp
     peak = std::max(peak, p.manifest["models"][0].value("peak_memory_bytes", 0.0));
   }
   out.set_peak_bytes(mp, static_cast<std::size_t>(peak));
+  const bool moments = std::any_of(parts.begin(), parts.end(), [](const Part& p) { return p.unit().contains("flux"); });
+  std::optional<SolutionResult> held_b00;
   for (const SolutionPlan& sp : mp.solutions) {  // bake order: index order, a summed B00 last
     if (sp.derived) continue;
     ctx.check_cancelled();
@@ -398,11 +402,27 @@ Part assemble(const std::vector<Part>& parts, const fs::path& dir, const MergeOp
       if (file_checksum(path) != p.unit()["files"].at(file).at("checksum"))
         refuse(p.dir, file + " does not match its checksum (changed or damaged after the bake)");
       r.totals = read_raw_totals(path, mp.lattice.dims.count());
+      const nlohmann::json flux_files = p.unit().value("flux", nlohmann::json::object());
+      if (flux_files.contains(sp.grid_name)) {
+        const std::string flux_file = flux_files.at(sp.grid_name);
+        const fs::path flux_path = manifest_file(p.dir, flux_file, "/unit/flux/" + sp.grid_name);
+        if (file_checksum(flux_path) != p.unit()["files"].at(flux_file).at("checksum"))
+          refuse(p.dir, flux_file + " does not match its checksum (changed or damaged after the bake)");
+        r.flux = read_raw_flux(flux_path, mp.lattice.dims.count());
+      }
       ambient.add(r);
-      out.add(mp, r);
+      // As bake_model does: a B00 solved from a source comes last, with the directional flux summed.
+      if (sp.index == 0 && mp.model.first_collision_on() && moments)
+        held_b00 = std::move(r);
+      else
+        out.add(mp, r);
     } catch (const nlohmann::json::exception& e) {
       refuse(p.dir, std::string("damaged: its manifest lacks what a bake writes: ") + e.what());
     }
+  }
+  if (held_b00) {
+    if (held_b00->flux[0][0].empty()) ambient.fill_flux(*held_b00);
+    out.add(mp, *held_b00);
   }
   ambient.finish(forward);
   out.finish_model(mp);

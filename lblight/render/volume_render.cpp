@@ -101,6 +101,9 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
   }
   const RenderVolume& lb = v.delta_m ? lb_medium : v;
   if (!v.delta_m) lb_shadow = shadow;
+  // P1: the flux of the LB light's own unscattered sun, taken out with it (docs/rendering.md sec. 1)
+  const bool p1 = indirect && !v.flux[0][0].empty();
+  const Vec3d beam = lattice_beam_flux({-sun.x, -sun.y, -sun.z});
   Image img;
   img.width = cam.width;
   img.height = cam.height;
@@ -133,8 +136,16 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
               // the sun's light in the forward peak, E (T* - T), scattered out of it by the scaled
               // phase function.
               const double lb_to_sun = sample(d, lb_shadow[c], p);
-              const double scattered = std::max(0.0, sample(d, v.light[c], p) - st.intensity * lb_to_sun);
-              source += lb_sigma_s * scattered / (4 * kPi);
+              const double unscattered = st.intensity * lb_to_sun;
+              const double scattered = std::max(0.0, sample(d, v.light[c], p) - unscattered);
+              if (p1) {
+                const auto& f = v.flux[static_cast<std::size_t>(c)];
+                const Vec3d flux{sample(d, f[0], p) - unscattered * beam.x, sample(d, f[1], p) - unscattered * beam.y,
+                                 sample(d, f[2], p) - unscattered * beam.z};
+                source += lb_sigma_s * p1_in_scattering(scattered, flux, mlb[c].g, {-dir.x, -dir.y, -dir.z});
+              } else {
+                source += lb_sigma_s * scattered / (4 * kPi);
+              }
               if (v.delta_m)
                 source += lb_sigma_s * henyey_greenstein(mlb[c].g, cos_theta) * st.intensity *
                           std::max(0.0, lb_to_sun - to_sun);
@@ -155,6 +166,26 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
     }
   });
   return img;
+}
+
+double p1_in_scattering(double phi, const Vec3d& flux, double g, const Vec3d& toward_eye) {
+  if (!(phi > 0)) return 0.0;
+  const double len = std::sqrt(dot(flux, flux));
+  const double cut = len > phi ? phi / len : 1.0;
+  return std::max(0.0, phi + 3.0 * g * cut * dot(flux, toward_eye)) / (4 * kPi);
+}
+
+Vec3d lattice_beam_flux(const Vec3d& travel) {
+  const SunWeights w = decompose_direction(travel);
+  Vec3d j{0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    const int m = w.direction[static_cast<std::size_t>(k)];
+    const double len = std::sqrt(static_cast<double>(d3q19::length_sq(m))), wk = w.weight[static_cast<std::size_t>(k)];
+    j.x += wk * d3q19::cx(m) / len;
+    j.y += wk * d3q19::cy(m) / len;
+    j.z += wk * d3q19::cz(m) / len;
+  }
+  return j;
 }
 
 std::array<float, 3> false_colour(double t) {

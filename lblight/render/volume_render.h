@@ -30,6 +30,10 @@ struct RenderVolume {
   std::vector<std::uint8_t> material;          // kMaterialMedium or kMaterialWood per node (empty: all medium)
   std::array<std::array<OpticalParams, 3>, 2> materials{};  // per material, per channel, per voxel length
   std::array<std::vector<float>, 3> light;     // the relit LB light per node (empty: no indirect term)
+  // Its flux vector per channel and axis (index axes; bakes with output.moments): the indirect
+  // term then in-scatters the scattered light's P1 radiance with the phase function
+  // (docs/rendering.md sec. 1). Empty: isotropic in-scattering.
+  std::array<std::array<std::vector<float>, 3>, 3> flux;
   // The light was solved with the calibrated model's delta-M scaling (docs/model.md sec. 8): the
   // forward peak g^2 of scattering counted as unscattered. The renderer then takes the light's
   // scattered part and the eye ray's extinction from the same scaled medium (docs/rendering.md sec. 1).
@@ -44,7 +48,8 @@ struct Camera {
 };
 
 // Direct: the sun single-scattered with HG and shadows; Indirect: the LB light beyond the
-// unscattered sun, isotropic; All: both. Lb: the whole LB light (unscattered sun included)
+// unscattered sun, in-scattered with the phase function to first order where the volume has the
+// flux (isotropically where not); All: both. Lb: the whole LB light (unscattered sun included)
 // scattered isotropically, no HG term - what the Blender add-on's material renders
 // (tools/blender), for comparing the two.
 enum class RenderTerm { Direct, Indirect, All, Lb };
@@ -116,5 +121,17 @@ inline constexpr double kMaxRenderedG = 0.95;
 double henyey_greenstein(double g, double cos_theta);
 // The same without the clamp (|g| < 1).
 double henyey_greenstein_unclamped(double g, double cos_theta);
+
+// Light in-scattered toward `toward_eye` (unit) per unit scattering coefficient from light of
+// fluence phi and flux J, reconstructed to first order (P1: radiance (phi + 3 J . w) / 4 pi) and
+// convolved with a Henyey-Greenstein phase function of asymmetry g (whose first Legendre
+// coefficient is g): (phi + 3 g J . toward_eye) / 4 pi, never below 0. J is first cut to |J| <= phi
+// (light cannot flow faster than it is).
+double p1_in_scattering(double phi, const Vec3d& flux, double g, const Vec3d& toward_eye);
+
+// The flux of the lattice's unscattered beam for a sun whose light travels along `travel`, per
+// unit of its light: the sum of w n over the three lattice directions the sun is split onto
+// (docs/model.md sec. 4.1); a little shorter than a unit vector off the lattice directions.
+Vec3d lattice_beam_flux(const Vec3d& travel);
 
 }  // namespace lblight

@@ -161,6 +161,10 @@ struct OutputSpec {
   // Light grids stored as 16-bit floats (OpenVDB's half; half the file), their rounding error
   // reported per solution in the manifest.
   bool half = false;
+  // Each light grid's flux vector per colour channel as well (<grid>_flux_r/_g/_b), what `render`
+  // and the add-on in-scatter with the phase function (docs/rendering.md sec. 1): four times the
+  // light's grids on disk. false: the scalar light only (rendered with --scattering isotropic).
+  bool moments = true;
 };
 
 struct Scene {

@@ -511,6 +511,7 @@ OutputSpec read_output(const JsonReader& r) {
   out.vdb = boolean_field(r, o, "vdb");
   out.full_box = boolean_field(r, o, "full_box");
   out.half = boolean_field(r, o, "half");
+  out.moments = boolean_field(r, o, "moments");
   if (!r.has("lbh")) {
     if (!out.vdb) r.fail("nothing to write: vdb is false and no lbh output is asked for", "vdb");
     return out;

@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
+
+#include <spdlog/spdlog.h>
 
 #include "lblight/backend/node_rules.h"
 #include "lblight/core/error.h"
@@ -353,6 +356,8 @@ struct SystemRef {
 }  // namespace
 
 AmbientSum::AmbientSum(const ModelPlan& mp, bool wanted) : mp_(mp) {
+  for (const SolutionPlan& s : mp.solutions)
+    if (s.index == 0) flux_weights_ = s.boundary;
   if (!wanted) return;
   for (const SolutionPlan& s : mp.solutions)
     if (s.derived) plan_ = &s;
@@ -361,7 +366,19 @@ AmbientSum::AmbientSum(const ModelPlan& mp, bool wanted) : mp_(mp) {
 }
 
 void AmbientSum::add(const SolutionResult& r) {
-  if (!plan_ || r.plan.index < 1) return;
+  if (r.plan.index < 1) return;
+  if (!r.flux[0][0].empty()) {  // weighted by B_0's boundary (lb_model.h, ambient_boundary)
+    const auto b = static_cast<float>(flux_weights_[static_cast<std::size_t>(r.plan.index)]);
+    for (int c = 0; c < kChannels; ++c)
+      for (int a = 0; a < 3; ++a) {
+        std::vector<float>& sum = flux_[c][a];
+        const std::vector<float>& j = r.flux[c][a];
+        if (sum.empty()) sum.assign(j.size(), 0.0f);
+        for (std::size_t i = 0; i < j.size(); ++i) sum[i] += b * j[i];
+      }
+    ++flux_count_;
+  }
+  if (!plan_) return;
   const auto t0 = Clock::now();
   double norm_sq = 0, peak = 0;
   const double b = plan_->boundary[static_cast<std::size_t>(r.plan.index)];
@@ -409,7 +426,12 @@ void AmbientSum::finish(BakeObserver& observer) {
   r.error_estimate_max = max_value > 0 ? bound_max_ / max_value : 0.0;
   r.seconds = seconds_ + seconds_since(t0);
   for (auto& c : sum_) std::vector<double>().swap(c);
+  fill_flux(r);
   observer.solution_done(mp_, r);
+}
+
+void AmbientSum::fill_flux(SolutionResult& r) const {
+  if (flux_count_ == 18) r.flux = flux_;
 }
 
 // An uneven last batch would step as often as the others with a fraction of the device busy.
@@ -510,6 +532,7 @@ namespace {
 struct PartialSolution {
   SolutionResult result;
   std::vector<std::vector<float>> per_channel;
+  std::vector<FluxField> per_channel_flux;  // BakeOptions::moments
   int channels_done = 0;
 };
 
@@ -709,7 +732,15 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
     partial[s].result.plan = mp.solutions[s];
     partial[s].result.converged = true;  // until a channel does not
     partial[s].per_channel.resize(mp.channels.size());
+    partial[s].per_channel_flux.resize(mp.channels.size());
   }
+  // moments: read from the final states (flux.h)
+  const bool moments = opt.moments && solver->state_access() != nullptr;
+  if (opt.moments && !moments)
+    spdlog::warn("model '{}': the {} backend gives no access to its states, so no flux (moments) is written; "
+                 "render such a bake with --scattering isotropic",
+                 mp.spec->name, backend.name());
+  std::optional<SolutionResult> sourced_b00;  // moments: held until the directional solutions' flux is summed
 
   for (std::size_t start = 0; start < queue.size();) {
     const std::size_t end = batch_end(queue, start, capacity, channels, sourced_solution);
@@ -776,17 +807,33 @@ void bake_model(const ModelPlan& mp, const Backend& backend, const BakeOptions& 
         totals = outcome.accumulated[s];
       else
         solver->read_totals(static_cast<int>(s), totals.data());
+      if (moments && !sourced) {
+        solver->state_access()->read_state(static_cast<int>(s), state_buffer);
+        p.per_channel_flux[static_cast<std::size_t>(batch[s].channel)] =
+            state_flux(mp.lattice, mp.channels[static_cast<std::size_t>(batch[s].channel)], state_buffer);
+      }
       add_channel(p, outcome, s, batch_seconds / static_cast<double>(batch.size()), std::move(totals),
                   batch[s].channel, warm_batch);
       if (p.channels_done < channels) continue;
       SolutionResult r = std::move(p.result);
       r.converged = !fixed && r.converged;
-      for (int c = 0; c < kChannels; ++c) r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
+      for (int c = 0; c < kChannels; ++c) {
+        r.totals[c] = p.per_channel[static_cast<std::size_t>(mp.channel_of[c])];
+        if (!p.per_channel_flux[static_cast<std::size_t>(mp.channel_of[c])][0].empty())
+          r.flux[c] = p.per_channel_flux[static_cast<std::size_t>(mp.channel_of[c])];
+      }
       p = PartialSolution{};
       ambient.add(r);
-      observer.solution_done(mp, r);
+      if (moments && sourced)
+        sourced_b00 = std::move(r);
+      else
+        observer.solution_done(mp, r);
     }
     start = end;
+  }
+  if (sourced_b00) {
+    ambient.fill_flux(*sourced_b00);
+    observer.solution_done(mp, *sourced_b00);
   }
   ambient.finish(observer);
 }

@@ -9,6 +9,7 @@
 #include "lblight/backend/backend.h"
 #include "lblight/core/run_context.h"
 #include "lblight/solve/convergence.h"
+#include "lblight/solve/flux.h"
 #include "lblight/solve/plan.h"
 
 namespace lblight {
@@ -25,6 +26,9 @@ struct SolutionResult {
   double krylov_residual = 0;  // its final relative residual
   std::vector<CheckPoint> history;                    // worst channel at every check
   std::array<std::vector<float>, 3> totals;           // R, G, B per lattice node
+  // BakeOptions::moments: the flux vector of each colour channel per lattice node (flux.h); empty
+  // when not asked for or not available (a backend without state access).
+  std::array<FluxField, 3> flux;
   // The Monte Carlo reference only (lblight/reference): the totals' standard error per node, and
   // the photons traced.
   std::array<std::vector<float>, 3> std_error;
@@ -82,6 +86,11 @@ struct BakeOptions {
   // backend's StateAccess (Error(Unavailable) otherwise). A warm start has no minimum step count:
   // docs/fluid.md, "Warm starts", says why the convergence estimate alone is an honest stop then.
   WarmStart* warm = nullptr;
+  // The flux of every solution as well (SolutionResult::flux; docs/model.md sec. 3.2), read from
+  // the final states. A B00 solved from a source (first_collision), whose state is not its whole
+  // light, gets the sum of the 18 directional solutions' flux (the lattice's own B00) when the bake
+  // has them all, and none otherwise. Skipped, with a warning, on a backend without StateAccess.
+  bool moments = false;
 };
 
 // Systems per batch for `model` on `backend`: the backend's preference (or options.max_systems),
@@ -112,11 +121,17 @@ class AmbientSum {
   bool wanted() const { return plan_ != nullptr; }
   void add(const SolutionResult& r);        // a directional solution, with its totals
   void finish(BakeObserver& observer);      // after all 18: hands B_0 to the observer
+  // BakeOptions::moments: r.flux = the flux sum of the 18 directional solutions added (whether or
+  // not B_0's totals are wanted); left empty unless all 18 came with their flux.
+  void fill_flux(SolutionResult& r) const;
 
  private:
   const ModelPlan& mp_;
   const SolutionPlan* plan_ = nullptr;
   std::array<std::vector<double>, 3> sum_;
+  std::array<FluxField, 3> flux_;  // per channel and axis: sum_j b_j J_j
+  std::array<double, 19> flux_weights_{};  // b: B_0's boundary (whether derived or solved)
+  int flux_count_ = 0;
   double bound_ = 0, bound_max_ = 0, seconds_ = 0;
   int iterations_ = 0, count_ = 0;
   bool converged_ = true;

@@ -77,6 +77,53 @@ TEST_CASE("relight of the base solutions equals the static bake of that sun, on 
   CHECK(worst <= 2e-5 * peak);  // two runs to 1e-6 each, stored in float32
 }
 
+TEST_CASE("relighting the base solutions' flux gives the flux of the static bake of that sun", "[cli][moments]") {
+  // docs/model.md sec. 3.2: the flux is linear in the boundary as the light is. With the calibrated
+  // model and first_collision, B00 is solved from a source and its flux is the directional
+  // solutions' sum (solve/bake.h, BakeOptions::moments): the ambient part checks that path.
+  // (base bake's solver, static bake's solver): a static bake has no B00 to correct.
+  for (const auto& [base_solver, static_solver] :
+       {std::pair<std::string, std::string>{R"("model": "paper")", R"("model": "paper")"},
+        std::pair<std::string, std::string>{R"("calibration": {"first_collision": true})", R"("model": "calibrated")"}}) {
+    TempDir tmp;
+    const auto scene = [&](const std::string& lighting, const std::string& solver) {
+      return R"({"version": 1, "models": [{"name": "tree", "density": {"type": "procedural", "shape": "plant",
+             "resolution": 12, "seed": 4}, "material": "leaf"}], "lighting": )" +
+             lighting + R"(, "solver": {"iterations": "auto", "tolerance": 1e-6, )" + solver + "}}";
+    };
+    const std::string& solver = base_solver;
+    write_text(tmp / "base.json", scene(R"({"mode": "base", "solutions": "all"})", base_solver));
+    write_text(tmp / "static.json",
+               scene(R"({"mode": "static", "sun": {"elevation": 35, "azimuth": 120}, "intensity": 1.7, "ambient": 0.3})",
+                     static_solver));
+    REQUIRE(run_cli("bake base.json -o base --backend cpu -q", tmp.path()).exit_code == 0);
+    REQUIRE(run_cli("bake static.json -o static --backend cpu -q", tmp.path()).exit_code == 0);
+    const CliResult r = run_cli(
+        "relight base --sun-elevation 35 --sun-azimuth 120 --intensity 1.7 --ambient 0.3 -o relit.vdb", tmp.path());
+    INFO(solver << "\n" << r.out << r.err);
+    REQUIRE(r.exit_code == 0);
+    const DenseGridIn density = read_vdb_grid_dense(tmp / "relit.vdb", "density");
+    const DenseGridIn light = read_vdb_grid_dense(tmp / "static" / "tree.vdb", "light");
+    for (const char* channel : {"r", "g", "b"}) {
+      const DenseGridIn relit = read_vdb_grid_dense(tmp / "relit.vdb", std::string("light_flux_") + channel);
+      const DenseGridIn stat = read_vdb_grid_dense(tmp / "static" / "tree.vdb", std::string("light_flux_") + channel);
+      REQUIRE(relit.frame.dims == stat.frame.dims);
+      double worst = 0, peak = 0, largest_flux = 0;
+      for (std::size_t i = 0; i < density.values[0].size(); ++i) {
+        if (density.values[0][i] <= 0.0f) continue;
+        peak = std::max(peak, static_cast<double>(light.values[0][i]));
+        for (int a = 0; a < 3; ++a) {
+          worst = std::max(worst, std::fabs(static_cast<double>(relit.values[a][i]) - stat.values[a][i]));
+          largest_flux = std::max(largest_flux, std::fabs(static_cast<double>(stat.values[a][i])));
+        }
+      }
+      INFO(channel << ": worst " << worst << ", peak light " << peak << ", largest flux " << largest_flux);
+      CHECK(largest_flux > 0.1 * peak);  // a sun's light flows: the flux is not small
+      CHECK(worst <= 2e-5 * peak);
+    }
+  }
+}
+
 TEST_CASE("relight names the base solution a sun needs when the bake left it out", "[cli]") {
   TempDir tmp;
   write_text(tmp / "sky.json", plant_scene(R"({"mode": "base", "solutions": "auto",

@@ -164,3 +164,30 @@ TEST_CASE("render: outputs checked before the render (same EXR and PNG, missing 
   CHECK(range.exit_code == 2);
   CHECK(range.err.find("--range and --log set the colour scale of a --grid picture") != std::string::npos);
 }
+
+TEST_CASE("render: a bake without flux grids is refused by name, never rendered isotropic unasked", "[cli][render][moments]") {
+  TempDir tmp;
+  std::string scene = kScene;
+  scene.replace(scene.find("\"solver\""), 0, R"("output": {"moments": false}, )");
+  write_text(tmp / "scene.json", scene);
+  REQUIRE(run_cli("bake scene.json -o bake --backend cpu -q", tmp.path()).exit_code == 0);
+  REQUIRE(run_cli("relight bake --sun-elevation 30 -o relit.vdb", tmp.path()).exit_code == 0);
+  for (const std::string input : {"bake", "relit.vdb --material leaf"}) {
+    const CliResult r = run_cli("render " + input + " --sun-elevation 30 --orbit front --size 16x16 -o p.exr", tmp.path());
+    INFO(input << ": " << r.out << r.err);
+    CHECK(r.exit_code == 2);
+    CHECK(r.err.find("no flux grids") != std::string::npos);
+    CHECK(r.err.find("--scattering isotropic") != std::string::npos);
+    CHECK(r.err.find(input == "bake" ? "tree.vdb" : "relit.vdb") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(tmp.path() / "p.exr"));
+    const CliResult iso = run_cli("render " + input + " --sun-elevation 30 --orbit front --size 16x16 --scattering isotropic -o p.exr",
+                                  tmp.path());
+    INFO(iso.out << iso.err);
+    CHECK(iso.exit_code == 0);
+    std::filesystem::remove(tmp.path() / "p.exr");
+    std::filesystem::remove(tmp.path() / "p.png");
+  }
+  // --term direct needs no light, --term lb no flux
+  CHECK(run_cli("render bake --sun-elevation 30 --orbit front --size 16x16 --term direct -o d.exr", tmp.path()).exit_code == 0);
+  CHECK(run_cli("render bake --sun-elevation 30 --orbit front --size 16x16 --term lb -o l.exr", tmp.path()).exit_code == 0);
+}

@@ -197,7 +197,8 @@ TEST_CASE("simulate --light: every frame lit in its own file, warm frames in few
     const nlohmann::json info = inspect_vdb(tmp / "lit" / (name + ".vdb"));
     std::set<std::string> names;
     for (const auto& g : info["grids"]) names.insert(g["name"].get<std::string>());
-    CHECK(names == std::set<std::string>{"density", "light", "temperature", "velocity"});
+    CHECK(names == std::set<std::string>{"density", "light", "light_flux_r", "light_flux_g", "light_flux_b", "temperature",
+                                         "velocity"});
     CHECK(info["file_metadata"]["lblight_frame"] == f);
   }
   const auto steps = [&](const char* folder, int f) {

@@ -221,3 +221,27 @@ TEST_CASE("render --term lb: the whole LB light scattered isotropically, whateve
   const Image b = render_volume(v, above(v), st);
   CHECK(a.rgba == b.rgba);
 }
+
+TEST_CASE("render: with the light's flux, the scattered light is in-scattered with the phase function (P1)",
+          "[render][moments]") {
+  // Light 1 and flux J everywhere, no sun: the indirect term emits sigma_s (1 + 3 g J . w) / 4 pi
+  // toward the eye (w = +z for a camera above), seen through the slab.
+  const double g = 0.4;
+  RenderVolume v = slab(21, 21, 11, 0.8f, {0.03, 0.12, g});
+  RenderSettings st;
+  st.intensity = 0.0;
+  st.term = RenderTerm::Indirect;
+  for (int c = 0; c < 3; ++c) {
+    v.light[c].assign(v.frame.dims.count(), 1.0f);
+    for (int a = 0; a < 3; ++a) v.flux[c][a].assign(v.frame.dims.count(), a == 2 ? 0.25f : 0.1f);
+  }
+  const double sigma_t = 0.8 * 0.15, sigma_s = 0.8 * 0.12, seen = (1 - std::exp(-sigma_t * 10)) / sigma_t;
+  const Image toward = render_volume(v, above(v), st);
+  CHECK(centre(toward, 1) == Approx(sigma_s * (1 + 3 * g * 0.25) / (4 * kPi) * seen).epsilon(0.005));
+  for (int c = 0; c < 3; ++c) v.flux[c][2].assign(v.frame.dims.count(), -0.25f);  // flowing away from the eye
+  const Image away = render_volume(v, above(v), st);
+  CHECK(centre(away, 1) == Approx(sigma_s * (1 - 3 * g * 0.25) / (4 * kPi) * seen).epsilon(0.005));
+  for (auto& f : v.flux) f = {};  // no flux: isotropic, as before
+  const Image iso = render_volume(v, above(v), st);
+  CHECK(centre(iso, 1) == Approx(sigma_s / (4 * kPi) * seen).epsilon(0.005));
+}
