@@ -101,9 +101,21 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
   }
   const RenderVolume& lb = v.delta_m ? lb_medium : v;
   if (!v.delta_m) lb_shadow = shadow;
-  // P1: the flux of the LB light's own unscattered sun, taken out with it (docs/rendering.md sec. 1)
+  // The LB light's own unscattered sun: the lattice carries it along the three directions the sun
+  // is split onto (docs/model.md sec. 4.1), each attenuated along its own path, so that is what
+  // the indirect term takes out (with its flux), not the sun's beam along its true direction: in
+  // a clumpy crown the split beams pass more light than the true one (docs/rendering.md sec. 1).
   const bool p1 = indirect && !v.flux[0][0].empty();
-  const Vec3d beam = lattice_beam_flux({-sun.x, -sun.y, -sun.z});
+  const SunWeights split = decompose_direction({-sun.x, -sun.y, -sun.z});
+  std::array<std::array<std::vector<float>, 3>, 3> beam_shadow;
+  std::array<Vec3d, 3> beam_dir{};
+  for (int k = 0; k < 3 && indirect; ++k) {
+    const int m = split.direction[static_cast<std::size_t>(k)];
+    const double len = std::sqrt(static_cast<double>(d3q19::length_sq(m)));
+    beam_dir[k] = {d3q19::cx(m) / len, d3q19::cy(m) / len, d3q19::cz(m) / len};
+    if (split.weight[static_cast<std::size_t>(k)] > 0)
+      beam_shadow[k] = sun_transmittance(lb, mul(beam_dir[k], -1.0), st.step);
+  }
   Image img;
   img.width = cam.width;
   img.height = cam.height;
@@ -136,12 +148,19 @@ Image render_volume(const RenderVolume& v, const Camera& cam, const RenderSettin
               // the sun's light in the forward peak, E (T* - T), scattered out of it by the scaled
               // phase function.
               const double lb_to_sun = sample(d, lb_shadow[c], p);
-              const double unscattered = st.intensity * lb_to_sun;
+              double unscattered = 0;
+              Vec3d beam_flux{0, 0, 0};
+              for (int k = 0; k < 3; ++k) {
+                if (!(split.weight[static_cast<std::size_t>(k)] > 0)) continue;
+                const double u = st.intensity * split.weight[static_cast<std::size_t>(k)] * sample(d, beam_shadow[k][c], p);
+                unscattered += u;
+                beam_flux = add(beam_flux, mul(beam_dir[k], u));
+              }
               const double scattered = std::max(0.0, sample(d, v.light[c], p) - unscattered);
               if (p1) {
                 const auto& f = v.flux[static_cast<std::size_t>(c)];
-                const Vec3d flux{sample(d, f[0], p) - unscattered * beam.x, sample(d, f[1], p) - unscattered * beam.y,
-                                 sample(d, f[2], p) - unscattered * beam.z};
+                const Vec3d flux{sample(d, f[0], p) - beam_flux.x, sample(d, f[1], p) - beam_flux.y,
+                                 sample(d, f[2], p) - beam_flux.z};
                 source += lb_sigma_s * p1_in_scattering(scattered, flux, mlb[c].g, {-dir.x, -dir.y, -dir.z});
               } else {
                 source += lb_sigma_s * scattered / (4 * kPi);
@@ -173,19 +192,6 @@ double p1_in_scattering(double phi, const Vec3d& flux, double g, const Vec3d& to
   const double len = std::sqrt(dot(flux, flux));
   const double cut = len > phi ? phi / len : 1.0;
   return std::max(0.0, phi + 3.0 * g * cut * dot(flux, toward_eye)) / (4 * kPi);
-}
-
-Vec3d lattice_beam_flux(const Vec3d& travel) {
-  const SunWeights w = decompose_direction(travel);
-  Vec3d j{0, 0, 0};
-  for (int k = 0; k < 3; ++k) {
-    const int m = w.direction[static_cast<std::size_t>(k)];
-    const double len = std::sqrt(static_cast<double>(d3q19::length_sq(m))), wk = w.weight[static_cast<std::size_t>(k)];
-    j.x += wk * d3q19::cx(m) / len;
-    j.y += wk * d3q19::cy(m) / len;
-    j.z += wk * d3q19::cz(m) / len;
-  }
-  return j;
 }
 
 std::array<float, 3> false_colour(double t) {

@@ -129,9 +129,4 @@ double henyey_greenstein_unclamped(double g, double cos_theta);
 // (light cannot flow faster than it is).
 double p1_in_scattering(double phi, const Vec3d& flux, double g, const Vec3d& toward_eye);
 
-// The flux of the lattice's unscattered beam for a sun whose light travels along `travel`, per
-// unit of its light: the sum of w n over the three lattice directions the sun is split onto
-// (docs/model.md sec. 4.1); a little shorter than a unit vector off the lattice directions.
-Vec3d lattice_beam_flux(const Vec3d& travel);
-
 }  // namespace lblight

@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "lblight/lattice/d3q19.h"
 #include "lblight/render/volume_render.h"
 
 using namespace lblight;
@@ -95,9 +96,19 @@ TEST_CASE("render: the direct term is linear in the sun, and the LB term counts 
   st.intensity = 2.0;
   const Image two = render_volume(v, above(v), st);
   for (std::size_t i = 0; i < one.rgba.size(); i += 4) CHECK(two.rgba[i] == Approx(2 * one.rgba[i]).epsilon(1e-6));
-  // LB light that is exactly the attenuated sun holds no scattered light: no indirect term.
+  // LB light that is exactly the lattice's unscattered sun (split onto three lattice directions,
+  // each attenuated along its own path) holds no scattered light: no indirect term.
   st.intensity = 1.5;
-  const auto t = sun_transmittance(v, st.toward_sun, st.step);
+  const Vec3d travel{-0.3, -0.2, -1.0};
+  const SunWeights split = decompose_direction(travel);
+  std::array<std::vector<float>, 3> t;
+  for (auto& c : t) c.assign(v.density.size(), 0.0f);
+  for (int k = 0; k < 3; ++k) {
+    const int m = split.direction[k];
+    const auto tk = sun_transmittance(v, {-1.0 * d3q19::cx(m), -1.0 * d3q19::cy(m), -1.0 * d3q19::cz(m)}, st.step);
+    for (int c = 0; c < 3; ++c)
+      for (std::size_t i = 0; i < t[c].size(); ++i) t[c][i] += static_cast<float>(split.weight[k] * tk[c][i]);
+  }
   for (int c = 0; c < 3; ++c) {
     v.light[c].resize(t[c].size());
     for (std::size_t i = 0; i < t[c].size(); ++i) v.light[c][i] = static_cast<float>(1.5 * t[c][i]);

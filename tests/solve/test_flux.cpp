@@ -112,15 +112,3 @@ TEST_CASE("P1: the radiance integrates back to the light, and its HG in-scatteri
   CHECK(p1_in_scattering(1.0, {0, 0, -5}, 0.3, {0, 0, -1}) == Approx((1.0 + 0.9) / (4 * kPi)));
   CHECK(p1_in_scattering(0.0, flux, 0.3, out) == 0.0);
 }
-
-TEST_CASE("P1: the lattice's unscattered beam has the flux of its three directions", "[moments][render]") {
-  // On a lattice direction the beam is that direction; between them a little shorter than 1.
-  const Vec3d axial = lattice_beam_flux({0, 0, -1});
-  CHECK(axial.z == Approx(-1.0));
-  const Vec3d d{-0.8, 0.1, -0.59};
-  const Vec3d j = lattice_beam_flux(d);
-  const double len = std::sqrt(dot3(j, j)), dlen = std::sqrt(dot3(d, d));
-  CHECK(len < 1.0);
-  CHECK(len > 0.85);
-  CHECK(dot3(j, d) / (len * dlen) > 0.97);  // along the sun, within the face it lies on
-}
