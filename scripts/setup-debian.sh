@@ -6,6 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake
   libcli11-dev libopenvdb-dev libboost-iostreams-dev libopenexr-dev libtbb-dev
+  libnanovdb-dev libnanovdb-tools  # .nvdb output (header-only) and nanovdb_validate for its test
   liblog4cplus-dev  # OpenVDB's logger: lblight silences OpenVDB's own warnings and reports its errors itself
   nlohmann-json3-dev libspdlog-dev catch2
   python3-openvdb   # OpenVDB's own Python reader, used by a test to reopen bake outputs

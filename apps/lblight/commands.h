@@ -27,6 +27,7 @@ Command add_bench_command(CLI::App& app, const GlobalOptions& global);
 Command add_report_command(CLI::App& app, const GlobalOptions& global);
 Command add_voxelize_command(CLI::App& app, const GlobalOptions& global);
 Command add_compress_command(CLI::App& app, const GlobalOptions& global);
+Command add_nanovdb_command(CLI::App& app, const GlobalOptions& global);
 Command add_decompress_command(CLI::App& app, const GlobalOptions& global);
 Command add_compare_command(CLI::App& app, const GlobalOptions& global);
 Command add_truth_command(CLI::App& app, const GlobalOptions& global);

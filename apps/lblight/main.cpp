@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
       cli::add_voxelize_command(app, global),
       cli::add_compress_command(app, global),
       cli::add_decompress_command(app, global),
+      cli::add_nanovdb_command(app, global),
       cli::add_compare_command(app, global),
       cli::add_truth_command(app, global),
       cli::add_relight_command(app, global),

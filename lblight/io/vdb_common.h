@@ -25,4 +25,10 @@ void set_metadata(openvdb::MetaMap& meta, const nlohmann::json& j);
 // the Dense default, is z fastest and would scramble every grid for other OpenVDB readers).
 openvdb::CoordBBox frame_bbox(const DenseFrame& f);
 
+// Grid `name` of the file at `path`, read whole after the checks every lblight reader makes (a
+// regular, complete file, read once in an isolated child first); Error(InvalidInput) naming the
+// file and grid otherwise.
+openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where,
+                                 const RunContext& ctx);
+
 }  // namespace lblight::vdb_detail

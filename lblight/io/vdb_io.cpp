@@ -274,6 +274,29 @@ void probe_readable(const std::filesystem::path& path, const Location& where, co
   probed.insert(key);
 }
 
+nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
+  nlohmann::json j = nlohmann::json::object();
+  for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it) {
+    const auto& m = it->second;
+    const std::string type = m->typeName();
+    if (type == "bool") j[it->first] = static_cast<const openvdb::BoolMetadata&>(*m).value();
+    else if (type == "int32") j[it->first] = static_cast<const openvdb::Int32Metadata&>(*m).value();
+    else if (type == "int64") j[it->first] = static_cast<const openvdb::Int64Metadata&>(*m).value();
+    else if (type == "float") j[it->first] = static_cast<const openvdb::FloatMetadata&>(*m).value();
+    else if (type == "double") j[it->first] = static_cast<const openvdb::DoubleMetadata&>(*m).value();
+    else if (type == "string") j[it->first] = static_cast<const openvdb::StringMetadata&>(*m).value();
+    else if (type == "vec3i") {
+      const auto v = static_cast<const openvdb::Vec3IMetadata&>(*m).value();
+      j[it->first] = {v[0], v[1], v[2]};
+    } else j[it->first] = m->str();
+  }
+  return j;
+}
+
+}  // namespace
+
+namespace vdb_detail {
+
 openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::string& name, const Location& where,
                                  const RunContext& ctx) {
   ensure_initialized();
@@ -311,26 +334,9 @@ openvdb::GridBase::Ptr open_grid(const std::filesystem::path& path, const std::s
   return g;
 }
 
-nlohmann::json metadata_to_json(const openvdb::MetaMap& meta) {
-  nlohmann::json j = nlohmann::json::object();
-  for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it) {
-    const auto& m = it->second;
-    const std::string type = m->typeName();
-    if (type == "bool") j[it->first] = static_cast<const openvdb::BoolMetadata&>(*m).value();
-    else if (type == "int32") j[it->first] = static_cast<const openvdb::Int32Metadata&>(*m).value();
-    else if (type == "int64") j[it->first] = static_cast<const openvdb::Int64Metadata&>(*m).value();
-    else if (type == "float") j[it->first] = static_cast<const openvdb::FloatMetadata&>(*m).value();
-    else if (type == "double") j[it->first] = static_cast<const openvdb::DoubleMetadata&>(*m).value();
-    else if (type == "string") j[it->first] = static_cast<const openvdb::StringMetadata&>(*m).value();
-    else if (type == "vec3i") {
-      const auto v = static_cast<const openvdb::Vec3IMetadata&>(*m).value();
-      j[it->first] = {v[0], v[1], v[2]};
-    } else j[it->first] = m->str();
-  }
-  return j;
-}
+}  // namespace vdb_detail
 
-}  // namespace
+using vdb_detail::open_grid;
 
 ModelGrid read_vdb_density(const std::filesystem::path& file, const std::string& density_grid,
                             const std::string& wood_grid, const Location& where, const RunContext& ctx) {

@@ -16,6 +16,7 @@
 #include "lblight/core/input_file.h"
 #include "lblight/core/system_info.h"
 #include "lblight/core/version.h"
+#include "lblight/io/nanovdb_io.h"
 #include "lblight/io/vdb_io.h"
 #include "lblight/lattice/ground.h"
 
@@ -390,6 +391,14 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
                    file_name, vdb_->grids_written(), mib, output_seconds_, vdb_->compress_seconds());
     vdb_.reset();
   }
+  const std::string nanovdb_name = mp.spec->name + ".nvdb";
+  const bool nanovdb = write_grids && plan_.scene->output.nanovdb;
+  if (nanovdb) {  // the finished .vdb converted whole (io/nanovdb_io.h)
+    const auto t0 = std::chrono::steady_clock::now();
+    const NanoVdbWritten n = write_nanovdb(dir_.path(file_name), dir_.path(nanovdb_name));
+    spdlog::info("{}: {} grids, {:.1f} MiB, converted from {} in {:.2f} s", nanovdb_name, n.grids,
+                 static_cast<double>(n.bytes) / 1048576.0, file_name, since(t0));
+  }
 
   // Manifest rows and .lbh solutions in index order (a B00 summed from the others arrives last).
   std::vector<std::size_t> order(done_.size());
@@ -402,6 +411,7 @@ void BakeOutput::finish_model(const ModelPlan& mp) {
   model["role"] = mp.role == PlanRole::Model ? "model" : mp.role == PlanRole::ForestCoarse ? "forest" : "forest_alone";
   if (mp.role == PlanRole::ForestAlone) model["alone_model"] = mp.alone_model;
   model["file"] = write_grids ? nlohmann::json(file_name) : nlohmann::json(nullptr);
+  if (nanovdb) model["nanovdb_file"] = nanovdb_name;
   model["source"] = mp.grid.description;
   model["lattice"] = lattice_json(mp);
   model["materials"] = {{"medium", material_json(mp.spec->material)}};

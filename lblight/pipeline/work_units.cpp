@@ -68,7 +68,7 @@ std::vector<std::pair<std::string, std::string>> named_files(const nlohmann::jso
   };
   const nlohmann::json& models = manifest.at("models");
   for (std::size_t i = 0; i < models.size(); ++i)
-    for (const char* key : {"file", "lbh_file"})
+    for (const char* key : {"file", "lbh_file", "nanovdb_file"})
       if (models[i].contains(key)) add(models[i][key], "/models/" + std::to_string(i) + "/" + key);
   for (const char* key : {"totals", "flux"}) {  // a unit's raw totals and flux (bake_output.h)
     const nlohmann::json raw = manifest.value("unit", nlohmann::json::object()).value(key, nlohmann::json());

@@ -165,6 +165,9 @@ struct OutputSpec {
   // and the add-on in-scatter with the phase function (docs/rendering.md sec. 1): four times the
   // light's grids on disk. false: the scalar light only (rendered with --scattering isotropic).
   bool moments = true;
+  // Each model's .vdb also as NanoVDB (<model>.nvdb: every grid, for GPU renderers and real-time
+  // engines; docs/output-format.md).
+  bool nanovdb = false;
 };
 
 struct Scene {

@@ -212,7 +212,8 @@ std::vector<ObjectSpec> build() {
                        "true, false or {threshold, relative, coefficients}"),
                 boolean("full_box", false, "light grids active over the whole lattice box"),
                 boolean("half", false, "light grids as 16-bit floats"),
-                boolean("moments", true, "the flux vector of every light grid as well (phase-aware rendering)")}});
+                boolean("moments", true, "the flux vector of every light grid as well (phase-aware rendering)"),
+                boolean("nanovdb", false, "each model's grids also as NanoVDB (<model>.nvdb)")}});
   t.push_back({"output.lbh", "Haar-compressed sub-block streams (docs/lbh-format.md).",
                {number("threshold", 0.0, 1e30, 0.01, "threshold >= 0 (<= 1 when relative)"),
                 boolean("relative", true, "threshold as a fraction of each solution's maximum"),

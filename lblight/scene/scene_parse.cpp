@@ -512,6 +512,8 @@ OutputSpec read_output(const JsonReader& r) {
   out.full_box = boolean_field(r, o, "full_box");
   out.half = boolean_field(r, o, "half");
   out.moments = boolean_field(r, o, "moments");
+  out.nanovdb = boolean_field(r, o, "nanovdb");
+  if (out.nanovdb && !out.vdb) r.fail("nanovdb converts each model's .vdb: it needs vdb true", "nanovdb");
   if (!r.has("lbh")) {
     if (!out.vdb) r.fail("nothing to write: vdb is false and no lbh output is asked for", "vdb");
     return out;
