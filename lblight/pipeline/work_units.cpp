@@ -20,6 +20,7 @@
 #include "lblight/io/run_paths.h"
 #include "lblight/pipeline/bake_output.h"
 #include "lblight/pipeline/manifest.h"
+#include "lblight/solve/ambient_sum.h"
 #include "lblight/solve/bake.h"
 
 namespace fs = std::filesystem;
