@@ -88,7 +88,7 @@ std::string text_of(const nlohmann::json& j, const char* key) {
 
 double unit_memory_bytes(const ModelPlan& mp, const Backend& sizing_backend, bool solver_on_host) {
   const double nodes = static_cast<double>(mp.lattice.dims.count());
-  double bytes = kProcessBytes + nodes * (host_bytes_per_node(mp.model) + kOutputBytesPerNode);
+  double bytes = kProcessBytes + nodes * (host_bytes_per_node(mp.model, mp.moments) + kOutputBytesPerNode);
   if (solver_on_host) bytes += static_cast<double>(plan_cost(mp, sizing_backend).device_bytes);
   return kMemoryMargin * bytes;
 }

@@ -13,7 +13,8 @@ ModelGrid load_model_grid(const ModelSpec& model, const Scene& scene, const RunC
   ModelGrid g;
   switch (model.density.type) {
     case SourceType::Procedural:
-      g = make_procedural(model.density.procedural, {scene.file.string(), model.density.json_path + "/resolution", {}});
+      g = make_procedural(model.density.procedural, {scene.file.string(), model.density.json_path + "/resolution", {}},
+                          ctx);
       break;
     case SourceType::Vdb: {
       const VdbSource& v = model.density.vdb;

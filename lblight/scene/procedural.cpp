@@ -1,6 +1,8 @@
 #include "lblight/core/system_info.h"
 #include "lblight/scene/procedural.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -58,7 +60,7 @@ double fbm(double x, double y, double z, std::uint64_t seed, int octaves) {
 }
 
 
-ModelGrid make_cloud(const ProceduralSource& s) {
+ModelGrid make_cloud(const ProceduralSource& s, const RunContext& ctx) {
   const int r = s.resolution;
   ModelGrid g;
   g.dims = {r, std::max(4, static_cast<int>(std::lround(0.75 * r))), std::max(4, static_cast<int>(std::lround(0.55 * r)))};
@@ -69,7 +71,9 @@ ModelGrid make_cloud(const ProceduralSource& s) {
   const double cx = 0.5 * (g.dims.nx - 1), cy = 0.5 * (g.dims.ny - 1), cz = 0.5 * (g.dims.nz - 1);
   const double ax = 0.42 * g.dims.nx, ay = 0.40 * g.dims.ny, az = 0.38 * g.dims.nz;
   const double freq = 6.0 / r;
-  for (int k = 0; k < g.dims.nz; ++k)
+#pragma omp parallel for schedule(dynamic) num_threads(ctx.threads > 0 ? ctx.threads : omp_get_max_threads())
+  for (int k = 0; k < g.dims.nz; ++k) {
+    if (ctx.cancelled()) continue;
     for (int j = 0; j < g.dims.ny; ++j)
       for (int i = 0; i < g.dims.nx; ++i) {
         const double u = (i - cx) / ax, v = (j - cy) / ay;
@@ -81,6 +85,8 @@ ModelGrid make_cloud(const ProceduralSource& s) {
         const double d = std::clamp(shell * 3.0, 0.0, 1.0);
         g.density[g.dims.index(i, j, k)] = static_cast<float>(d);
       }
+  }
+  ctx.check_cancelled();
   g.description = "procedural cloud, resolution " + std::to_string(r) + ", seed " + std::to_string(s.seed);
   return g;
 }
@@ -110,7 +116,7 @@ struct Cluster {
   double c[3], radius, density;
 };
 
-ModelGrid make_plant(const ProceduralSource& s) {
+ModelGrid make_plant(const ProceduralSource& s, const RunContext& ctx) {
   const int r = s.resolution;
   ModelGrid g;
   const int width = std::max(4, static_cast<int>(std::lround(0.8 * r)));
@@ -140,10 +146,20 @@ ModelGrid make_plant(const ProceduralSource& s) {
 
   // 3x3x3 samples per node give partial occupancy for wood; leaves are a noise-modulated
   // density inside each cluster (a "leaf cloud", [Geist2010] sec. 3.2.2).
-  for (int k = 0; k < g.dims.nz; ++k)
+  // A sample lies within sqrt(3)/3 voxel of its node's centre: a centre farther than that beyond
+  // every limb's surface has no sample inside one (the same hits, without the 27 x limbs tests).
+  const double reach = std::sqrt(3.0) / 3.0 / r;
+#pragma omp parallel for schedule(dynamic) num_threads(ctx.threads > 0 ? ctx.threads : omp_get_max_threads())
+  for (int k = 0; k < g.dims.nz; ++k) {
+    if (ctx.cancelled()) continue;
     for (int j = 0; j < g.dims.ny; ++j)
       for (int i = 0; i < g.dims.nx; ++i) {
         int wood_hits = 0;
+        const double centre[3] = {(i - half_x) / r, (j - half_y) / r, (k + 0.5) / r};
+        bool near_limb = false;
+        for (const Limb& l : limbs)
+          near_limb = near_limb || segment_distance(centre, l.a, l.b) <= std::max(l.r0, l.r1) + reach;
+        if (near_limb)
         for (int sz = -1; sz <= 1; ++sz)
           for (int sy = -1; sy <= 1; ++sy)
             for (int sx = -1; sx <= 1; ++sx) {
@@ -178,6 +194,8 @@ ModelGrid make_plant(const ProceduralSource& s) {
         // brown where wood occupies more of the cell than leaves ([Steele2009] sec. 4.1)
         g.material[idx] = wood > leaf * (1.0 - wood) ? kMaterialWood : kMaterialMedium;
       }
+  }
+  ctx.check_cancelled();
   g.description = "procedural plant, resolution " + std::to_string(r) + ", seed " + std::to_string(s.seed);
   return g;
 }
@@ -203,14 +221,40 @@ std::array<double, 16> centred_transform(const Dims& d, double h, bool on_ground
   return {h, 0, 0, ox, 0, h, 0, oy, 0, 0, h, oz, 0, 0, 0, 1};
 }
 
-ModelGrid make_procedural(const ProceduralSource& src, const Location& where) {
+ModelGrid make_procedural(const ProceduralSource& src, const Location& where, const RunContext& ctx) {
   const double r = src.resolution;
   check_host_memory(r * r * r * 5.0, "a procedural " + src.shape + " at resolution " + std::to_string(src.resolution),
                     "lower the resolution", where);
   if (src.shape == "box") return make_box(src);
-  if (src.shape == "cloud") return make_cloud(src);
-  if (src.shape == "plant") return make_plant(src);
+  if (src.shape == "cloud") return make_cloud(src, ctx);
+  if (src.shape == "plant") return make_plant(src, ctx);
   throw std::invalid_argument("unknown procedural shape " + src.shape);
+}
+
+Dims procedural_least_occupied(const ProceduralSource& src) {
+  // The shapes are defined in units of the grid (noise frequency and geometry scale with the
+  // resolution): a coarse version of the same seed has the same occupied box, to a coarse voxel.
+  constexpr int kCoarse = 48;
+  if (src.resolution <= kCoarse) return make_procedural(src).dims;
+  ProceduralSource coarse = src;
+  coarse.resolution = kCoarse;
+  const ModelGrid g = make_procedural(coarse);
+  int lo[3] = {g.dims.nx, g.dims.ny, g.dims.nz}, hi[3] = {-1, -1, -1};
+  for (int k = 0; k < g.dims.nz; ++k)
+    for (int j = 0; j < g.dims.ny; ++j)
+      for (int i = 0; i < g.dims.nx; ++i)
+        if (g.density[g.dims.index(i, j, k)] > 0.0f) {
+          const int at[3] = {i, j, k};
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], at[a]);
+            hi[a] = std::max(hi[a], at[a]);
+          }
+        }
+  const double scale = static_cast<double>(src.resolution) / kCoarse;
+  int least[3];
+  for (int a = 0; a < 3; ++a)  // one coarse voxel given away at each end
+    least[a] = hi[a] < lo[a] ? 1 : std::max(1, static_cast<int>(std::floor((hi[a] - lo[a] - 1) * scale)));
+  return {least[0], least[1], least[2]};
 }
 
 }  // namespace lblight

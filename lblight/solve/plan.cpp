@@ -8,6 +8,7 @@
 #include "lblight/core/system_info.h"
 #include "lblight/lattice/d3q19.h"
 #include "lblight/lattice/ground.h"
+#include "lblight/scene/procedural.h"
 #include "lblight/scene/forest_coarse.h"
 #include "lblight/scene/load_model.h"
 
@@ -199,7 +200,7 @@ void plan_lattice(ModelPlan& mp, const Scene& scene, ModelGrid grid, std::vector
   const Dims& gd = mp.grid.dims;
   const int gap = mp.ground.on ? mp.ground.gap : -1;
   const Dims ld{gd.nx + 2 * spec.margin, gd.ny + 2 * spec.margin, gd.nz + spec.margin + layers_below(spec.margin, gap)};
-  check_host_memory(static_cast<double>(ld.count()) * host_bytes_per_node(scene.solver.model),
+  check_host_memory(static_cast<double>(ld.count()) * host_bytes_per_node(scene.solver.model, scene.output.moments),
                     "model '" + spec.name + "' (a " + std::to_string(ld.nx) + "x" + std::to_string(ld.ny) + "x" +
                         std::to_string(ld.nz) + " lattice)",
                     "lower the resolution, crop the density source or lower margin", {scene.file.string(), spec.json_path, {}});
@@ -369,6 +370,7 @@ void add_coarse_plan(BakePlan& plan, const Scene& scene, const PlanOverrides& ov
     if (role == PlanRole::ForestAlone && m.name == alone_model) on_ground = m.ground;
   plan_lattice(mp, scene, std::move(coarse.grid), plan.warnings, on_ground, ground_index);
   plan_channels(mp, scene.solver.model);
+  mp.moments = scene.output.moments;
   plan_solutions(mp, scene, ov);
   PlanOverrides coarse_ov = ov;
   coarse_ov.tolerance = scene.forest.coarse_tolerance;
@@ -438,6 +440,7 @@ ModelPlan plan_model(BakePlan& plan, const ModelSpec& spec, ModelGrid grid, cons
   mp.spec = &spec;
   plan_lattice(mp, scene, std::move(grid), plan.warnings, spec.ground);
   plan_channels(mp, scene.solver.model);
+  mp.moments = scene.output.moments;
   plan_solutions(mp, scene, ov);
   plan_steps(mp, scene, ov, plan.precision);
   return mp;
@@ -461,6 +464,18 @@ BakePlan make_plan(const Scene& scene, const PlanOverrides& ov, const RunContext
   plan.models.reserve(scene.models.size());
   for (const ModelSpec& spec : scene.models) {
     if (only_model && spec.name != *ov.only) continue;
+    // A procedural shape's least occupied box (what crop cannot cut) must fit before it is
+    // generated: at resolution 1024 generating alone takes minutes and gigabytes.
+    if (spec.density.type == SourceType::Procedural) {
+      const Dims least = procedural_least_occupied(spec.density.procedural);
+      const Dims ld{least.nx + 2 * spec.margin, least.ny + 2 * spec.margin, least.nz + 2 * spec.margin};
+      check_host_memory(static_cast<double>(ld.count()) * host_bytes_per_node(scene.solver.model, scene.output.moments),
+                        "model '" + spec.name + "' (at least a " + std::to_string(ld.nx) + "x" + std::to_string(ld.ny) +
+                            "x" + std::to_string(ld.nz) + " lattice: the box its procedural " +
+                            spec.density.procedural.shape + " is sure to fill at resolution " +
+                            std::to_string(spec.density.procedural.resolution) + ")",
+                        "lower the resolution", {scene.file.string(), spec.density.json_path + "/resolution", {}});
+    }
     plan.models.push_back(plan_model(plan, spec, load_model_grid(spec, scene, ctx), ov));
   }
   // A model unit of a forest with coarse lattices leaves the forest (its cell size needs every
@@ -482,8 +497,9 @@ std::array<OpticalParams, kMaxMaterials> channel_optics(const ModelPlan& mp, int
   return o;
 }
 
-double host_bytes_per_node(const LbModel& model) {
-  return kHostBytesPerLatticeNode + (model.first_collision_on() ? kFirstCollisionBytesPerNode : 0.0);
+double host_bytes_per_node(const LbModel& model, bool moments) {
+  return kHostBytesPerLatticeNode + (model.first_collision_on() ? kFirstCollisionBytesPerNode : 0.0) +
+         (moments ? kMomentsBytesPerNode : 0.0);
 }
 
 }  // namespace lblight

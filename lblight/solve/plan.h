@@ -25,8 +25,13 @@ inline constexpr double kHostBytesPerLatticeNode = 41.0;
 // running sums and changes of plain iteration's pulses (3 systems).
 inline constexpr double kFirstCollisionBytesPerNode = 8.0 * (19 + 1 + 3 + 3 + 6);
 
-// Host bytes per lattice node of a bake of `mp` (kHostBytesPerLatticeNode, and first_collision's).
-double host_bytes_per_node(const LbModel& model);
+// And with output.moments (solve/flux.h): a state read back in doubles (19), one solution's flux and
+// the directional solutions' flux sum for B00 (9 floats each).
+inline constexpr double kMomentsBytesPerNode = 8.0 * 19 + 2 * 4.0 * 9;
+
+// Host bytes per lattice node of a bake of `mp` (kHostBytesPerLatticeNode, first_collision's and
+// the moments').
+double host_bytes_per_node(const LbModel& model, bool moments = false);
 
 // The largest boundary value float16 storage takes (its largest finite value is 65504; light in
 // the lattice stays near the boundary's, and the margin keeps sums and overshoot finite).
@@ -109,6 +114,7 @@ struct ModelPlan {
   std::vector<ChannelMaterials> channels;  // distinct channel materials (1 when R = G = B)
   std::array<int, 3> channel_of{};         // colour channel -> entry of `channels`
   LbModel model;                           // the scene's solver model (channels are built by it)
+  bool moments = false;                    // the scene's output.moments (host memory per node)
   std::vector<SolutionPlan> solutions;
   GroundPlan ground;
   PlanSavings savings;

@@ -1008,6 +1008,11 @@ case("memory-compress-2048-cube-vec3-tile", "memory", ["compress", "tile.vdb", "
 case("memory-procedural-1024-bake", "memory", ["bake", "scene.json", "-o", "out"],
      scene_writer(models=[box_model(res=1024)]), (1, 2), ["scene.json", MEMORY], timeout=30, max_seconds=10,
      must_not_exist=OUT_GONE, desc="the largest allowed procedural resolution: refused quickly, by name")
+for _shape in ("cloud", "plant"):  # refused from a coarse copy of the shape, before generating it (minutes)
+    case("memory-procedural-1024-" + _shape, "memory", ["bake", "scene.json", "-o", "out"],
+         scene_writer(models=[{"name": "m", "density": {"type": "procedural", "shape": _shape, "resolution": 1024},
+                               "material": "leaf"}]), (1, 2), ["scene.json", "/resolution", MEMORY], timeout=30,
+         max_seconds=5, must_not_exist=OUT_GONE, desc="a procedural " + _shape + " that cannot fit: refused up front")
 case("memory-procedural-1024-validate", "memory", ["validate", "--no-timing", "scene.json"],
      scene_writer(models=[box_model(res=1024)]), (1, 2), ["scene.json", MEMORY], timeout=30, max_seconds=10)
 case("memory-mesh-2048-bake", "memory", ["bake", "scene.json", "-o", "out"],
