@@ -13,19 +13,23 @@
 #include <cstring>
 #include <exception>
 #include <fstream>
+#include <sstream>
 
 namespace lblight {
 
 namespace {
 
-std::size_t own_address_space_bytes() {
+// A "Vm...:" field of /proc/self/status in bytes, 0 when absent. Line by line: the first line
+// ("Name:\tlblight") is not a number, and reading it as one ended the search before VmSize (the
+// memory cap of the isolated reader was never set).
+std::size_t own_status_bytes(const std::string& field) {
   std::ifstream in("/proc/self/status");
-  std::string key;
-  std::size_t kb = 0;
-  std::string rest;
-  while (in >> key >> kb) {
-    std::getline(in, rest);
-    if (key == "VmSize:") return kb * 1024;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(field, 0) != 0) continue;
+    std::istringstream values(line.substr(field.size()));
+    std::size_t kb = 0;
+    return values >> kb ? kb * 1024 : 0;
   }
   return 0;
 }
@@ -54,7 +58,9 @@ std::unique_lock<std::mutex> hold_forks() { return std::unique_lock<std::mutex>(
 
 IsolatedOutcome run_isolated(const std::function<void()>& work, double timeout_seconds, const RunContext& ctx,
                              std::size_t memory_bytes) {
-  const std::size_t inherited = own_address_space_bytes();
+  // Limits on what the child adds: its address space (a backstop) and its data (private writable
+  // memory: what reading allocates; the address space also holds reservations that never use memory).
+  const std::size_t inherited = own_status_bytes("VmSize:"), inherited_data = own_status_bytes("VmData:");
   int fds[2];
   if (::pipe2(fds, O_CLOEXEC) != 0) throw_io(std::string("cannot create a pipe: ") + std::strerror(errno));
   std::unique_lock<std::mutex> no_loading(fork_mutex());
@@ -72,6 +78,10 @@ IsolatedOutcome run_isolated(const std::function<void()>& work, double timeout_s
       struct rlimit r {};
       r.rlim_cur = r.rlim_max = static_cast<rlim_t>(inherited + memory_bytes);
       ::setrlimit(RLIMIT_AS, &r);
+      if (inherited_data > 0) {
+        r.rlim_cur = r.rlim_max = static_cast<rlim_t>(inherited_data + memory_bytes);
+        ::setrlimit(RLIMIT_DATA, &r);
+      }
     }
     int code = 0;
     std::string message;
